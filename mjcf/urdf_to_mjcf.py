@@ -1,0 +1,440 @@
+"""Any differential-drive URDF → an MjSpec robot.
+
+MuJoCo's own URDF import welds the root to the world, drops visuals and does not resolve ``package://``,
+so the URDF is read with yourdfpy and each link becomes a body built through ``mujoco.MjSpec``:
+
+* the root link gets a free joint; massless dummy links (``base_footprint``) stay as massless bodies;
+* continuous and revolute joints become hinges, prismatic joints slides, whatever their rpy/axis;
+* visual geoms are kept but never collide and carry no mass (group 2); collisions are group 3;
+* an ``<inertial>`` is kept exactly (tensor rotated into the body frame); a link without one gets its
+  mass and inertia from its collision geometry at ``DEFAULT_DENSITY`` and the converter says so;
+* the drive wheels' tyres are marked for tyre friction, the caster made frictionless.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import logging
+import math
+import os
+import re
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+import trimesh
+import yourdfpy
+
+from mjcf.errors import MjcfError
+from mjcf.robot_config import RobotConfig
+
+log = logging.getLogger(__name__)
+
+DEFAULT_DENSITY = 1000.0  # [kg/m³], MuJoCo's default; used only for links without <inertial>
+VISUAL_GROUP, COLLISION_GROUP = 2, 3
+MUJOCO_MESH_FORMATS = (".stl", ".obj", ".msh")
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotInfo:
+    """What the converter learned about the robot; lengths in [m].
+
+    Attributes:
+      root_body: name of the free-floating root body.
+      wheel_joints: (left, right) hinge names.
+      wheel_directions: (left, right) ±1 so that positive joint speed × direction rolls forward.
+      wheel_radius: R, from the tyre's collision geometry.
+      half_track: L, half the distance between the wheels' contact planes' centres.
+      axle_centre: (x, y, z) of the axle midpoint in the root frame.
+      tyre_geoms: collision geoms of the two wheels.
+      caster_geoms: collision geoms of the caster(s).
+      sensor_body: body carrying the sensor array.
+      ground_height: root-frame height of the root origin above the floor when standing.
+      mesh_files: mesh asset name → source file path (for saving).
+      notes: what the converter inferred or changed, one line each.
+    """
+
+    root_body: str
+    wheel_joints: tuple[str, str]
+    wheel_directions: tuple[float, float]
+    wheel_radius: float
+    half_track: float
+    axle_centre: tuple[float, float, float]
+    tyre_geoms: tuple[str, ...]
+    caster_geoms: tuple[str, ...]
+    sensor_body: str
+    ground_height: float
+    mesh_files: dict
+    notes: tuple[str, ...]
+
+
+def _pos_quat(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T[:3, :3]).ravel())
+    return T[:3, 3].copy(), quat
+
+
+def _check_xml(path: str) -> None:
+    """yourdfpy silently "recovers" broken XML; refuse it with the parser's line and column instead."""
+    try:
+        root = ET.parse(path).getroot()
+    except FileNotFoundError:
+        raise MjcfError(f"{path}: URDF file not found") from None
+    except ET.ParseError as e:
+        raise MjcfError(f"{path}: not a well-formed URDF ({e})") from None
+    if root.tag != "robot":
+        raise MjcfError(f"{path}: root element is <{root.tag}>, expected <robot>")
+
+
+class _Resolver:
+    """URDF mesh filename → existing file: relative to the URDF, ``package://`` through yourdfpy's search
+    of the URDF's parent folders, or an explicit package map."""
+
+    def __init__(self, urdf_path: str, package_dirs: tuple[tuple[str, str], ...]):
+        self.urdf_dir = os.path.dirname(os.path.abspath(urdf_path))
+        self.packages = dict(package_dirs)
+
+    def __call__(self, fname: str) -> str:
+        m = re.match(r"package://([^/]+)/(.*)", fname)
+        if m and m.group(1) in self.packages:
+            candidate = os.path.join(self.packages[m.group(1)], m.group(2))
+            if os.path.isfile(candidate):
+                return candidate
+        if fname.startswith("file://"):
+            fname = fname[len("file://") :]
+        return yourdfpy.filename_handler_magic(fname, dir=self.urdf_dir)
+
+
+def load_urdf(path: str, config: RobotConfig = RobotConfig()) -> tuple[yourdfpy.URDF, _Resolver]:
+    _check_xml(path)
+    resolver = _Resolver(path, config.package_dirs)
+    try:
+        # yourdfpy logs a warning per unresolved file; we report missing meshes ourselves
+        logging.getLogger("yourdfpy").setLevel(logging.ERROR)
+        urdf = yourdfpy.URDF.load(path, build_scene_graph=False, load_meshes=False, filename_handler=resolver)
+    except Exception as e:  # yourdfpy raises assorted errors for bad attributes
+        raise MjcfError(f"{path}: invalid URDF ({e})") from None
+    return urdf, resolver
+
+
+class _Converter:
+    def __init__(self, path: str, config: RobotConfig, spec: mujoco.MjSpec, prefix: str):
+        self.path = path
+        self.config = config
+        self.spec = spec
+        self.prefix = prefix
+        self.urdf, self.resolve = load_urdf(path, config)
+        self.robot = self.urdf.robot
+        self.links = {link.name: link for link in self.robot.links}
+        self.children: dict[str, list] = {}
+        for j in self.robot.joints:
+            if j.parent not in self.links or j.child not in self.links:
+                raise MjcfError(f"{path}: joint {j.name} connects unknown link(s) {j.parent!r} → {j.child!r}")
+            self.children.setdefault(j.parent, []).append(j)
+        child_links = {j.child for j in self.robot.joints}
+        roots = [name for name in self.links if name not in child_links]
+        if len(roots) != 1:
+            raise MjcfError(f"{path}: expected one root link, found {len(roots)} ({', '.join(roots) or 'a cycle'})")
+        self.root = roots[0]
+        self.mesh_files: dict[str, str] = {}
+        self.notes: list[str] = []
+        self.link_T: dict[str, np.ndarray] = {self.root: np.eye(4)}  # link frame in the root frame
+        self.geoms: dict[str, list[tuple[str, object]]] = {}  # link → [(geom name, urdf collision)]
+
+    def name(self, s: str) -> str:
+        return self.prefix + s
+
+    def convert(self) -> mujoco.MjsBody:
+        body = self.spec.worldbody.add_body(name=self.name(self.root))
+        body.add_freejoint(name=self.name("root"))
+        self._fill_body(body, self.root, moving=True)
+        return body
+
+    def _fill_body(self, body: mujoco.MjsBody, link_name: str, moving: bool) -> None:
+        link = self.links[link_name]
+        self._inertial(body, link, moving)
+        self.geoms[link_name] = []
+        for i, vis in enumerate(link.visuals):
+            self._geom(body, link_name, vis, f"{link_name}/visual{i}", visual=True)
+        for i, col in enumerate(link.collisions):
+            gname = f"{link_name}/{col.name}" if col.name else f"{link_name}/collision{i}"
+            if self.spec.geom(self.name(gname)) is not None:
+                gname = f"{gname}{i}"
+            self._geom(body, link_name, col, gname, visual=False)
+            self.geoms[link_name].append((gname, col))
+        for j in self.children.get(link_name, []):
+            T = j.origin if j.origin is not None else np.eye(4)
+            self.link_T[j.child] = self.link_T[link_name] @ T
+            pos, quat = _pos_quat(T)
+            child = body.add_body(name=self.name(j.child), pos=pos, quat=quat)
+            joint_moves = j.type in ("continuous", "revolute", "prismatic")
+            if j.type in ("continuous", "revolute", "prismatic"):
+                axis = np.asarray(j.axis if j.axis is not None else [1.0, 0.0, 0.0], dtype=float)
+                if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
+                    raise MjcfError(f"{self.path}: joint {j.name} has a zero or invalid axis")
+                jt = mujoco.mjtJoint.mjJNT_SLIDE if j.type == "prismatic" else mujoco.mjtJoint.mjJNT_HINGE
+                mj = child.add_joint(name=self.name(j.name), type=jt, axis=axis / np.linalg.norm(axis))
+                if j.type != "continuous" and j.limit is not None and j.limit.lower is not None and j.limit.upper is not None:
+                    if j.limit.lower < j.limit.upper:
+                        mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+                        mj.range = [j.limit.lower, j.limit.upper]
+                if j.dynamics is not None:
+                    mj.damping = float(j.dynamics.damping or 0.0)
+                    mj.frictionloss = float(j.dynamics.friction or 0.0)
+            elif j.type != "fixed":
+                raise MjcfError(f"{self.path}: joint {j.name} has unsupported type {j.type!r}")
+            self._fill_body(child, j.child, moving=joint_moves)
+
+    def _inertial(self, body: mujoco.MjsBody, link, moving: bool) -> None:
+        inertial = link.inertial
+        if inertial is not None and inertial.mass is not None:
+            mass = float(inertial.mass)
+            if not math.isfinite(mass) or mass < 0:
+                raise MjcfError(f"{self.path}: link {link.name} has invalid mass {inertial.mass!r}")
+            if mass > 0:
+                T = inertial.origin if inertial.origin is not None else np.eye(4)
+                I = np.asarray(inertial.inertia if inertial.inertia is not None else np.zeros((3, 3)), dtype=float)
+                if not np.all(np.isfinite(I)):
+                    raise MjcfError(f"{self.path}: link {link.name} has a non-finite inertia")
+                Rm = T[:3, :3]
+                Ib = Rm @ I @ Rm.T  # URDF gives the tensor in the inertial frame; MuJoCo wants the body frame
+                body.explicitinertial = True
+                body.mass = mass
+                body.ipos = T[:3, 3]
+                body.fullinertia = [Ib[0, 0], Ib[1, 1], Ib[2, 2], Ib[0, 1], Ib[0, 2], Ib[1, 2]]
+                return
+        if link.collisions:
+            self.notes.append(
+                f"link {link.name} has no <inertial>: mass and inertia from its collision geometry "
+                f"at {DEFAULT_DENSITY:g} kg/m³"
+            )
+            log.warning("%s: %s", self.path, self.notes[-1])
+        elif moving and link.name != self.root:
+            raise MjcfError(f"{self.path}: link {link.name} moves on a joint but has no mass (no inertial, no collision)")
+        else:
+            self.notes.append(f"link {link.name} is massless (dummy frame)")
+
+    def _geom(self, body: mujoco.MjsBody, link_name: str, el, gname: str, visual: bool) -> None:
+        geo = el.geometry
+        if geo is None:
+            raise MjcfError(f"{self.path}: link {link_name} has a {'visual' if visual else 'collision'} without geometry")
+        T = el.origin if el.origin is not None else np.eye(4)
+        pos, quat = _pos_quat(T)
+        g = body.add_geom(name=self.name(gname), pos=pos, quat=quat)
+        if geo.box is not None:
+            g.type = mujoco.mjtGeom.mjGEOM_BOX
+            g.size = np.asarray(geo.box.size, dtype=float) / 2
+        elif geo.cylinder is not None:
+            g.type = mujoco.mjtGeom.mjGEOM_CYLINDER
+            g.size = [geo.cylinder.radius, geo.cylinder.length / 2, 0.0]
+        elif geo.sphere is not None:
+            g.type = mujoco.mjtGeom.mjGEOM_SPHERE
+            g.size = [geo.sphere.radius, 0.0, 0.0]
+        elif geo.mesh is not None:
+            g.type = mujoco.mjtGeom.mjGEOM_MESH
+            g.meshname = self._mesh(link_name, geo.mesh)
+        else:
+            raise MjcfError(f"{self.path}: link {link_name} has an empty <geometry>")
+        if any(s < 0 or not math.isfinite(s) for s in np.asarray(g.size).ravel()) or (
+            g.type != mujoco.mjtGeom.mjGEOM_MESH and g.size[0] <= 0
+        ):
+            raise MjcfError(f"{self.path}: link {link_name} has a geometry with a non-positive size")
+        if visual:
+            g.contype = g.conaffinity = 0
+            g.group = VISUAL_GROUP
+            g.density = 0.0  # visuals never add mass
+            mat = el.material
+            rgba = None
+            if mat is not None and mat.color is not None:
+                rgba = mat.color.rgba
+            elif mat is not None and mat.name:
+                named = {m.name: m for m in self.robot.materials}.get(mat.name)
+                rgba = named.color.rgba if named is not None and named.color is not None else None
+            if rgba is not None:
+                g.rgba = np.asarray(rgba, dtype=float)
+        else:
+            g.group = COLLISION_GROUP
+            g.density = DEFAULT_DENSITY
+            g.rgba = [0.5, 0.5, 0.5, 0.3]
+
+    def _mesh(self, link_name: str, mesh) -> str:
+        source = self.resolve(mesh.filename)
+        if not os.path.isfile(source):
+            raise MjcfError(f"{self.path}: mesh {mesh.filename!r} of link {link_name} not found")
+        scale = np.ones(3) if mesh.scale is None else np.broadcast_to(np.asarray(mesh.scale, dtype=float), (3,))
+        key = (os.path.abspath(source), tuple(scale))
+        for name, (src, sc) in self._mesh_keys.items():
+            if (src, sc) == key:
+                return name
+        ext = os.path.splitext(source)[1].lower()
+        if ext not in MUJOCO_MESH_FORMATS:
+            source = _converted_mesh(source)  # e.g. COLLADA: MuJoCo reads STL/OBJ/MSH only
+        name = self.name(f"mesh{len(self._mesh_keys)}_{os.path.splitext(os.path.basename(source))[0]}")
+        self.spec.add_mesh(name=name, file=source, scale=scale)
+        self._mesh_keys[name] = key
+        self.mesh_files[name] = source
+        return name
+
+    @functools.cached_property
+    def _mesh_keys(self) -> dict:
+        return {}
+
+
+def _converted_mesh(source: str) -> str:
+    """A mesh MuJoCo cannot read, converted by trimesh to a cached STL beside it (or in a temp dir)."""
+    try:
+        mesh = trimesh.load(source, force="mesh")
+    except Exception as e:
+        raise MjcfError(f"{source}: unreadable mesh ({e})") from None
+    import hashlib
+    import tempfile
+
+    digest = hashlib.sha1(open(source, "rb").read()).hexdigest()[:12]
+    out = os.path.join(tempfile.gettempdir(), "twin-meshes", f"{os.path.basename(source)}.{digest}.stl")
+    if not os.path.isfile(out):
+        os.makedirs(os.path.dirname(out), exist_ok=True)
+        tmp = out + f".{os.getpid()}.tmp"
+        mesh.export(tmp, file_type="stl")
+        os.replace(tmp, out)
+    return out
+
+
+def _joint_frame(conv: _Converter, joint) -> tuple[np.ndarray, np.ndarray]:
+    """(anchor, unit axis) of a joint in the root frame."""
+    T = conv.link_T[joint.child]
+    axis = T[:3, :3] @ np.asarray(joint.axis if joint.axis is not None else [1, 0, 0], dtype=float)
+    return T[:3, 3], axis / np.linalg.norm(axis)
+
+
+def _wheel_radius(conv: _Converter, joint) -> float:
+    """Radius of the wheel's collision geometry about its joint axis."""
+    link = conv.links[joint.child]
+    if not link.collisions:
+        raise MjcfError(f"{conv.path}: wheel link {link.name} has no collision geometry to roll on")
+    axis = np.asarray(joint.axis if joint.axis is not None else [1, 0, 0], dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    radii = []
+    for col in link.collisions:
+        geo = col.geometry
+        T = col.origin if col.origin is not None else np.eye(4)
+        if geo.sphere is not None:
+            radii.append(geo.sphere.radius)
+        elif geo.cylinder is not None:
+            # the cylinder's own axis must be the joint axis for it to be a wheel
+            if abs(abs(axis @ T[:3, 2]) - 1.0) > 1e-3:
+                raise MjcfError(f"{conv.path}: wheel {link.name}'s cylinder is not aligned with joint {joint.name}'s axis")
+            radii.append(geo.cylinder.radius)
+        elif geo.mesh is not None:
+            m = trimesh.load(conv.resolve(geo.mesh.filename), force="mesh")
+            v = m.vertices * (1.0 if geo.mesh.scale is None else np.asarray(geo.mesh.scale))
+            v = trimesh.transform_points(v, T)
+            radii.append(float(np.max(np.linalg.norm(v - np.outer(v @ axis, axis), axis=1))))
+        else:
+            radii.append(float(np.linalg.norm(np.asarray(geo.box.size)[:2]) / 2))
+    return max(radii)
+
+
+def convert(
+    path: str,
+    config: RobotConfig = RobotConfig(),
+    spec: mujoco.MjSpec | None = None,
+    prefix: str = "",
+) -> tuple[mujoco.MjSpec, RobotInfo]:
+    """Add the URDF's robot to ``spec`` (a new one by default); returns the spec and what was learned.
+
+    Raises:
+      MjcfError: the URDF does not parse, a mesh is missing, or the drive wheels cannot be identified.
+    """
+    spec = spec if spec is not None else mujoco.MjSpec()
+    spec.compiler.degree = False  # everything here is in radians
+    conv = _Converter(path, config, spec, prefix)
+    conv.convert()
+    joints = {j.name: j for j in conv.robot.joints}
+
+    # --- drive wheels
+    if config.wheel_joints is not None:
+        for n in config.wheel_joints:
+            if n not in joints:
+                raise MjcfError(f"{path}: wheel joint {n!r} not in the URDF")
+        pair = list(config.wheel_joints)
+    else:
+        cont = [j for j in conv.robot.joints if j.type == "continuous"]
+        if len(cont) < 2:
+            raise MjcfError(f"{path}: needs two continuous wheel joints, found {len(cont)}")
+        if len(cont) > 2:
+            # casters' wheels and swivels are continuous too: keep the pair whose axes are horizontal and opposite in y
+            cand = [j for j in cont if abs(_joint_frame(conv, j)[1][2]) < 0.1 and "caster" not in j.name.lower()]
+            if len(cand) != 2:
+                raise MjcfError(
+                    f"{path}: cannot tell the two drive wheels among {', '.join(j.name for j in cont)}; name them"
+                )
+            cont = cand
+        pair = sorted((j.name for j in cont), key=lambda n: -_joint_frame(conv, joints[n])[0][1])
+    left, right = (joints[n] for n in pair)
+    (pl, al), (pr, ar) = _joint_frame(conv, left), _joint_frame(conv, right)
+    if pl[1] <= pr[1]:
+        raise MjcfError(f"{path}: wheel {left.name} is not left of {right.name} (REP-103: +y is left)")
+    for j, a in ((left, al), (right, ar)):
+        if abs(a[1]) < 0.99:
+            raise MjcfError(f"{path}: wheel joint {j.name}'s axis {a.round(3)} is not across the robot (±y)")
+    # positive rotation about +y rolls a wheel forward (+x) on the floor
+    directions = (float(np.sign(al[1])), float(np.sign(ar[1])))
+    radius_l, radius_r = _wheel_radius(conv, left), _wheel_radius(conv, right)
+    if abs(radius_l - radius_r) > 1e-6:
+        conv.notes.append(f"wheel radii differ: {radius_l:.5f} / {radius_r:.5f} m; using the mean")
+    radius = (radius_l + radius_r) / 2
+    axle = (pl + pr) / 2
+
+    # --- tyres, caster, sensor mount
+    tyres = tuple(conv.name(g) for link in (left.child, right.child) for g, _ in conv.geoms[link])
+    caster_key = (config.caster or "caster").lower()
+    casters = []
+    for link, geoms in conv.geoms.items():
+        for g, col in geoms:
+            name_hit = caster_key in link.lower() or caster_key in g.lower()
+            if (config.caster is not None and (link == config.caster or (col.name or "") == config.caster)) or (
+                config.caster is None and name_hit
+            ):
+                casters.append(conv.name(g))
+    if config.caster is not None and not casters:
+        raise MjcfError(f"{path}: caster {config.caster!r} is neither a link nor a collision name")
+    if not casters:
+        conv.notes.append("no caster found by name: the robot rests on its wheels and any other collision geometry")
+    if config.sensor_link is not None:
+        if config.sensor_link not in conv.links:
+            raise MjcfError(f"{path}: sensor link {config.sensor_link!r} not in the URDF")
+        sensor = config.sensor_link
+    else:
+        named = [n for n in conv.links if "sensor" in n.lower()]
+        sensor = named[0] if len(named) == 1 else conv.root
+        if sensor == conv.root:
+            conv.notes.append("no sensor link found by name: the sensor array mounts on the root link")
+
+    # --- standing height: lowest collision point of tyres and casters, root frame
+    lows = [axle[2] - radius]
+    for link, geoms in conv.geoms.items():
+        for g, col in geoms:
+            if conv.name(g) in casters and col.geometry.sphere is not None:
+                centre = (conv.link_T[link] @ (col.origin if col.origin is not None else np.eye(4)))[:3, 3]
+                lows.append(centre[2] - col.geometry.sphere.radius)
+    info = RobotInfo(
+        root_body=conv.name(conv.root),
+        wheel_joints=(conv.name(left.name), conv.name(right.name)),
+        wheel_directions=directions,
+        wheel_radius=float(radius),
+        half_track=float(abs(pl[1] - pr[1]) / 2),
+        axle_centre=tuple(float(v) for v in axle),
+        tyre_geoms=tyres,
+        caster_geoms=tuple(casters),
+        sensor_body=conv.name(sensor),
+        ground_height=float(-min(lows)),
+        mesh_files=dict(conv.mesh_files),
+        notes=tuple(conv.notes),
+    )
+    for g in casters:
+        # a ball caster rolls: no tangential friction. MuJoCo takes the larger condim of two geoms unless
+        # one has priority, so the caster needs priority for its condim=1 to govern.
+        spec.geom(g).condim = 1
+        spec.geom(g).priority = 1
+    return spec, info

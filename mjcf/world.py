@@ -1,0 +1,182 @@
+"""World assembly: a converted robot, its DC motors and a textured track floor in one MjSpec.
+
+The floor is a finite plane exactly the size of the track texture, whose PNG is referenced by file
+(``spec.to_xml()`` cannot write a texture given as a buffer). The tyres get contact priority over the
+floor so that the tyre–floor friction μ is the tyres' own (MuJoCo otherwise takes the larger of the two).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import shutil
+import tempfile
+
+import mujoco
+import numpy as np
+from PIL import Image
+
+from mjcf.errors import MjcfError
+from mjcf.robot_config import RobotConfig
+from mjcf.track import FloorTexture, Pose2D
+from mjcf.urdf_to_mjcf import RobotInfo, convert
+from motors import MotorConstants
+from motors.actuator import add_dcmotor
+
+FLOOR = "floor"
+MOTORS = ("left_motor", "right_motor")
+AXLE_SITE = "axle_centre"
+SENSOR_SITE = "sensor_array"
+START_KEY = "start"
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsOptions:
+    """Simulation settings.
+
+    Attributes:
+      timestep: physics step in [s].
+      tyre_mu: tyre–floor sliding friction μ [-] (``motion.mu``).
+      floor_mu: the floor's own friction [-]; governs only contacts without a tyre.
+      supply_voltage: battery voltage in [V]; the motor voltage control is clamped to ±this.
+      impratio: frictional-to-normal impedance ratio; >1 reduces MuJoCo's soft-contact creep.
+    """
+
+    timestep: float = 0.001
+    tyre_mu: float = 0.9
+    floor_mu: float = 0.6
+    supply_voltage: float = 6.0
+    impratio: float = 10.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise MjcfError(f"physics.{f.name}: must be a finite number > 0, got {v!r}")
+        if self.timestep > 0.01:
+            raise MjcfError(f"physics.timestep: {self.timestep:g} s is too coarse for wheel contacts (max 0.01 s)")
+
+
+def write_texture_png(texture: FloorTexture, path: str) -> None:
+    """Write the floor texture as an RGB PNG (DPI metadata carries its scale), atomically."""
+    rgb = np.repeat(texture.grey[:, :, None], 3, axis=2)
+    dpi = 0.0254 / texture.metres_per_pixel
+    tmp = f"{path}.{os.getpid()}.tmp.png"
+    Image.fromarray(rgb).save(tmp, dpi=(dpi, dpi), compress_level=6)
+    os.replace(tmp, path)
+
+
+def build_world(
+    urdf_path: str,
+    texture: FloorTexture,
+    texture_png: str,
+    start: Pose2D,
+    motor: MotorConstants,
+    physics: PhysicsOptions = PhysicsOptions(),
+    config: RobotConfig = RobotConfig(),
+) -> tuple[mujoco.MjSpec, RobotInfo]:
+    """The whole world as an MjSpec; compile it with ``spec.compile()``.
+
+    Args:
+      urdf_path: the robot.
+      texture: the floor texture (its size and placement in the world).
+      texture_png: the same texture as a PNG file (see :func:`write_texture_png`).
+      start: robot start pose; stored as keyframe ``start``.
+      motor: constants of both drive motors.
+      physics: timestep, friction and supply voltage.
+      config: names of wheels, caster and sensor mount in the URDF.
+    """
+    spec = mujoco.MjSpec()
+    spec.modelname = "line_follower_world"
+    spec.compiler.degree = False
+    spec.option.timestep = physics.timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = physics.impratio
+
+    w, h = texture.size_m
+    tex = spec.add_texture(name="track", type=mujoco.mjtTexture.mjTEXTURE_2D, file=os.path.abspath(texture_png))
+    del tex
+    mat = spec.add_material(name="track")
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "track"
+    mat.texrepeat = [1.0, 1.0]
+    mat.texuniform = False
+    floor = spec.worldbody.add_geom(
+        name=FLOOR,
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[w / 2, h / 2, 0.05],
+        pos=[texture.origin_xy[0] + w / 2, texture.origin_xy[1] + h / 2, 0.0],
+        material="track",
+    )
+    floor.friction = [physics.floor_mu, 0.005, 0.0001]
+    spec.worldbody.add_light(pos=[texture.origin_xy[0] + w / 2, texture.origin_xy[1] + h / 2, 3.0], dir=[0, 0, -1])
+
+    spec, info = convert(urdf_path, config, spec=spec)
+    root = spec.body(info.root_body)
+    root.pos = [start.x, start.y, info.ground_height]
+    root.quat = [math.cos(start.yaw / 2), 0.0, 0.0, math.sin(start.yaw / 2)]
+    root.add_site(name=AXLE_SITE, pos=list(info.axle_centre), size=[0.003, 0, 0], group=4)
+    spec.body(info.sensor_body).add_site(name=SENSOR_SITE, size=[0.003, 0, 0], group=4)
+    for g in info.tyre_geoms:
+        geom = spec.geom(g)
+        geom.priority = 1  # this geom's friction governs its contacts
+        geom.friction = [physics.tyre_mu, 0.005, 0.0001]
+        geom.condim = 3
+    for name, joint, direction in zip(MOTORS, info.wheel_joints, info.wheel_directions):
+        add_dcmotor(spec, name, joint, motor, direction=direction, max_voltage=physics.supply_voltage)
+    model = _compile(spec, urdf_path)
+    key = spec.add_key(name=START_KEY)
+    key.qpos = model.qpos0.copy()  # the root's free joint starts at its body pose: the start pose
+    return spec, info
+
+
+def _compile(spec: mujoco.MjSpec, what: str) -> mujoco.MjModel:
+    try:
+        return spec.compile()
+    except ValueError as e:
+        raise MjcfError(f"{what}: MuJoCo cannot compile the model ({str(e).splitlines()[0]})") from None
+
+
+def compile_world(spec: mujoco.MjSpec, what: str = "world") -> mujoco.MjModel:
+    """Compile, turning MuJoCo's compiler errors into one-line :class:`MjcfError`."""
+    return _compile(spec, what)
+
+
+def save_xml(spec: mujoco.MjSpec, out_path: str) -> str:
+    """Write the spec as MJCF with its meshes and textures copied to ``<stem>_assets/`` beside it.
+
+    Written atomically: the assets folder and the XML appear complete or not at all. Returns the XML path.
+    """
+    out_path = os.path.abspath(out_path)
+    out_dir = os.path.dirname(out_path)
+    stem = os.path.splitext(os.path.basename(out_path))[0]
+    assets = f"{stem}_assets"
+    os.makedirs(out_dir, exist_ok=True)
+    tmp_assets = tempfile.mkdtemp(prefix=f".{stem}-", dir=out_dir)
+    copy = spec.copy()
+    try:
+        for item in list(copy.meshes) + list(copy.textures):
+            if not item.file:
+                continue
+            base = os.path.basename(item.file)
+            shutil.copyfile(item.file, os.path.join(tmp_assets, base))
+            item.file = os.path.join(tmp_assets, base)
+        try:
+            xml = copy.to_xml()
+        except Exception as e:
+            raise MjcfError(f"{out_path}: cannot write MJCF ({e})") from None
+        # to_xml reads the assets, so they pointed at the temporary folder; point them at the final one
+        xml = xml.replace(f'"{tmp_assets}/', f'"{assets}/')
+        tmp_xml = f"{out_path}.{os.getpid()}.tmp"
+        with open(tmp_xml, "w") as f:
+            f.write(xml)
+        final_assets = os.path.join(out_dir, assets)
+        if os.path.isdir(final_assets):
+            shutil.rmtree(final_assets)
+        os.replace(tmp_assets, final_assets)
+        os.replace(tmp_xml, out_path)
+    except BaseException:
+        shutil.rmtree(tmp_assets, ignore_errors=True)
+        raise
+    return out_path

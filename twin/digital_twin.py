@@ -1,0 +1,178 @@
+"""The twin: model-space values → a compiled MuJoCo world, rebuilt only when a change needs it.
+
+A CAD or environment parameter rebuilds URDF, MJCF and model; a motion or motor parameter is written
+into the compiled model's fields (so a ``mujoco.batch`` can hold different values per simulation).
+Generated robots and rasterised tracks are cached on disk by content hash.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import logging
+import os
+
+import mujoco
+import numpy as np
+
+from mjcf.cad import write_robot
+from mjcf.design import RobotDesign
+from mjcf.robot_config import RobotConfig
+from mjcf.track import FloorTexture, Track
+from mjcf.urdf_to_mjcf import RobotInfo
+from mjcf.world import FLOOR, MOTORS, PhysicsOptions, build_world, compile_world, write_texture_png
+from motors import MotorConstants
+from motors.actuator import write_fields
+from twin.environment import load_track
+from twin.errors import TwinError
+from twin.model_space import ChangeCost, ModelSpace
+from twin.models import default_space
+
+log = logging.getLogger(__name__)
+
+
+def cache_dir() -> str:
+    """Where generated robots and track textures are kept: ``$TWIN_CACHE_DIR`` or ~/.cache/line-follower-twin."""
+    return os.environ.get("TWIN_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "line-follower-twin")
+
+
+def _digest(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+class DigitalTwin:
+    """The integrated model of one robot on one track.
+
+    Args:
+      track: built-in track name or PNG path.
+      robot_urdf: a URDF to use instead of the generated robot (then ``cad.*`` cannot be set).
+      robot_config: names of wheels, caster and sensor mount in ``robot_urdf``.
+      track_metres_per_pixel: scale of a PNG track without DPI metadata, in [m].
+      space: the model space (default: :func:`twin.models.default_space`).
+    """
+
+    def __init__(
+        self,
+        track: str = "default",
+        robot_urdf: str | None = None,
+        robot_config: RobotConfig = RobotConfig(),
+        track_metres_per_pixel: float | None = None,
+        space: ModelSpace | None = None,
+    ):
+        self.space = space if space is not None else default_space()
+        self.track_source = track
+        self.robot_urdf = os.path.abspath(robot_urdf) if robot_urdf else None
+        self.robot_config = robot_config
+        self.track_metres_per_pixel = track_metres_per_pixel
+        self._model: mujoco.MjModel | None = None
+        self._spec: mujoco.MjSpec | None = None
+        self._built_key = None
+        self._track_key = None
+        self.track: Track | None = None
+        self.texture: FloorTexture | None = None
+        self.info: RobotInfo | None = None
+        self.rebuilds = 0  # how many times the world was compiled: tests and logs read it
+
+    # --- parameters
+    def set(self, address: str, value: float) -> ChangeCost:
+        """Set a model-space parameter; returns what it costs (applied at the next :meth:`model`)."""
+        if address.startswith("cad.") and self.robot_urdf is not None:
+            self.space.parameter(address)
+            raise TwinError(f"{address}: the robot comes from {self.robot_urdf}; CAD parameters shape the generated robot only")
+        return self.space.set(address, value)
+
+    def update(self, changes: dict[str, float]) -> None:
+        for a in changes:
+            if a.startswith("cad.") and self.robot_urdf is not None:
+                self.set(a, changes[a])
+        self.space.update(changes)
+
+    def design(self) -> RobotDesign:
+        try:
+            return RobotDesign(**self.space.model_values("cad"))
+        except ValueError as e:
+            raise TwinError(str(e)) from None
+
+    def motor(self) -> MotorConstants:
+        v = self.space.model_values("motor")
+        v.pop("supply_voltage")
+        try:
+            return MotorConstants(**v)
+        except ValueError as e:
+            raise TwinError(str(e)) from None
+
+    def physics(self) -> PhysicsOptions:
+        v = self.space.model_values("motion")
+        return PhysicsOptions(
+            timestep=v["timestep"], tyre_mu=v["mu"], floor_mu=v["floor_mu"],
+            supply_voltage=self.space.get("motor.supply_voltage"), impratio=v["impratio"],
+        )
+
+    # --- building
+    def _rebuild_key(self) -> tuple:
+        rebuild = {a: self.space.values[a] for a in self.space.addresses if self.space.parameter(a).cost is ChangeCost.REBUILD}
+        # inductance 0 ↔ > 0 adds or removes the current state: a structural change
+        return (_digest(rebuild), self.space.get("motor.L_M") > 0, self.robot_urdf, self.track_source)
+
+    def _ensure_track(self) -> None:
+        env = self.space.model_values("environment")
+        key = (self.track_source, env["line_width"], env["texture_resolution"], self.track_metres_per_pixel)
+        if key == self._track_key:
+            return
+        self.track, self.texture = load_track(
+            self.track_source, env["line_width"], env["texture_resolution"], self.track_metres_per_pixel
+        )
+        self._track_key = key
+
+    def _texture_png(self) -> str:
+        tex = self.texture
+        digest = hashlib.sha256(tex.grey.tobytes()).hexdigest()[:16]
+        path = os.path.join(cache_dir(), "tracks", f"{self.track.name}-{digest}.png")
+        if not os.path.isfile(path):
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            write_texture_png(tex, path)
+        return path
+
+    def _urdf(self) -> str:
+        if self.robot_urdf is not None:
+            return self.robot_urdf
+        design = self.design()
+        out = os.path.join(cache_dir(), "robots", _digest(dataclasses.asdict(design)))
+        urdf = os.path.join(out, "robot.urdf")
+        if not os.path.isfile(urdf):
+            write_robot(design, out)
+        return urdf
+
+    def spec(self) -> mujoco.MjSpec:
+        """The world's spec (built if needed), e.g. to save it as MJCF."""
+        self.model()
+        return self._spec
+
+    def model(self) -> mujoco.MjModel:
+        """The compiled world with the current parameter values."""
+        key = self._rebuild_key()
+        if self._model is None or key != self._built_key:
+            self._ensure_track()
+            urdf = self._urdf()
+            spec, info = build_world(
+                urdf, self.texture, self._texture_png(), self.track.start_pose(), self.motor(), self.physics(), self.robot_config
+            )
+            self._model = compile_world(spec, urdf)
+            self._spec, self.info, self._built_key = spec, info, key
+            self.rebuilds += 1
+            log.info("built world: robot %s on track %s", urdf, self.track.name)
+        apply_fields(self._model, self.info, self.motor(), self.physics())
+        return self._model
+
+
+def apply_fields(model: mujoco.MjModel, info: RobotInfo, motor: MotorConstants, physics: PhysicsOptions) -> None:
+    """Write the motion and motor parameters into a compiled world's fields."""
+    for g in info.tyre_geoms:
+        model.geom(g).friction[0] = physics.tyre_mu
+    model.geom(FLOOR).friction[0] = physics.floor_mu
+    model.opt.timestep = physics.timestep
+    model.opt.impratio = physics.impratio
+    ids = [model.actuator(n).id for n in MOTORS]
+    write_fields(model, ids, motor)
+    model.actuator_ctrlrange[ids] = np.array([-physics.supply_voltage, physics.supply_voltage])

@@ -1,0 +1,48 @@
+"""Choosing a track: a built-in name or a PNG file."""
+
+from __future__ import annotations
+
+import os
+
+from mjcf import track as track_mod
+from mjcf.track import FloorTexture, Track
+from mjcf.track_image import track_from_png
+from twin.errors import TwinError
+
+
+def load_track(
+    name_or_path: str,
+    line_width: float,
+    texture_resolution: float,
+    metres_per_pixel: float | None = None,
+) -> tuple[Track, FloorTexture]:
+    """A track and its floor texture.
+
+    Args:
+      name_or_path: a built-in track name, or a path to an image (``*.png``).
+      line_width: line width in [m] for built-in tracks (an image's is measured).
+      texture_resolution: pixel pitch in [m] for rasterising built-in tracks.
+      metres_per_pixel: an image's scale in [m], when it has no DPI metadata.
+    """
+    if name_or_path.lower().endswith((".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")) or os.sep in name_or_path:
+        track, texture = track_from_png(name_or_path, metres_per_pixel=metres_per_pixel)
+        return track, _padded(texture, margin_m=0.3)
+    if name_or_path not in track_mod.BUILTIN_SEGMENTS:
+        raise TwinError(
+            f"track {name_or_path!r}: unknown track; built-in tracks are {', '.join(track_mod.BUILTIN_SEGMENTS)}, "
+            "or give a PNG file"
+        )
+    centre_track = track_mod.builtin(name_or_path)
+    track = Track(centre_track.name, centre_track.centre, line_width_m=line_width)
+    return track, track.rasterise(metres_per_pixel=texture_resolution)
+
+
+def _padded(texture: FloorTexture, margin_m: float) -> FloorTexture:
+    """Pad an image with plain ground so a robot near its edge stays on the (finite) floor."""
+    import numpy as np
+
+    pad = int(round(margin_m / texture.metres_per_pixel))
+    ground = int(np.percentile(texture.grey, 90))
+    grey = np.pad(texture.grey, pad, mode="constant", constant_values=ground)
+    ox, oy = texture.origin_xy
+    return FloorTexture(grey, (ox - pad * texture.metres_per_pixel, oy - pad * texture.metres_per_pixel), texture.metres_per_pixel)
