@@ -205,6 +205,14 @@ class _Converter:
                 body.fullinertia = [Ib[0, 0], Ib[1, 1], Ib[2, 2], Ib[0, 1], Ib[0, 2], Ib[1, 2]]
                 return
         if link.collisions:
+            for col in link.collisions:
+                if col.geometry is not None and col.geometry.mesh is not None:
+                    source = self.resolve(col.geometry.mesh.filename)
+                    if os.path.isfile(source) and not trimesh.load(source, force="mesh").is_watertight:
+                        raise MjcfError(
+                            f"{self.path}: link {link.name} has no <inertial> and its collision mesh "
+                            f"{col.geometry.mesh.filename!r} is not watertight, so it has no volume to take inertia from"
+                        )
             self.notes.append(
                 f"link {link.name} has no <inertial>: mass and inertia from its collision geometry "
                 f"at {DEFAULT_DENSITY:g} kg/m³"

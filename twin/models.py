@@ -82,7 +82,7 @@ def motion_model() -> PartialModel:
         parameters=(
             Parameter("mu", "-", phys.tyre_mu, 0.05, 2.0, F, "tyre–floor friction coefficient", True),
             Parameter("floor_mu", "-", phys.floor_mu, 0.05, 2.0, F, "floor friction for non-tyre contacts", True),
-            Parameter("timestep", "s", phys.timestep, 1e-5, 0.005, F, "physics step", True),
+            Parameter("timestep", "s", phys.timestep, 1e-5, 0.0025, F, "physics step", True),
             Parameter("impratio", "-", phys.impratio, 1.0, 100.0, F, "friction/normal impedance ratio", True),
         ),
         realised_by="MuJoCo physics (mjcf.world)",

@@ -1,0 +1,112 @@
+"""Shared fixtures: a cache folder per test session, and a third-party-style URDF package."""
+
+from __future__ import annotations
+
+import os
+import textwrap
+
+import numpy as np
+import pytest
+import trimesh
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _cache_dir(tmp_path_factory):
+    os.environ["TWIN_CACHE_DIR"] = str(tmp_path_factory.mktemp("twin-cache"))
+
+
+THIRD_PARTY_URDF = """\
+<?xml version="1.0"?>
+<!-- ROS-style robot: root base_footprint without mass, wheels turned by rpy with axis 0 0 1,
+     package:// meshes, a caster link without <inertial>. -->
+<robot name="tb_like">
+  <link name="base_footprint"/>
+  <joint name="base_joint" type="fixed">
+    <parent link="base_footprint"/><child link="base_link"/>
+    <origin xyz="0 0 0.033" rpy="0 0 0"/>
+  </joint>
+  <link name="base_link">
+    <visual><origin xyz="0 0 0.02"/><geometry><mesh filename="package://tb_like/meshes/body.stl"/></geometry>
+      <material name="grey"><color rgba="0.6 0.6 0.6 1"/></material></visual>
+    <collision><origin xyz="0 0 0.02"/><geometry><mesh filename="package://tb_like/meshes/body.stl"/></geometry></collision>
+    <inertial><origin xyz="0.01 0 0.02"/><mass value="0.8"/>
+      <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.002" iyz="0" izz="0.003"/></inertial>
+  </link>
+  <joint name="wheel_left_joint" type="continuous">
+    <parent link="base_link"/><child link="wheel_left_link"/>
+    <origin xyz="0 0.08 0" rpy="-1.5707963267948966 0 0"/><axis xyz="0 0 1"/>
+  </joint>
+  <link name="wheel_left_link">
+    <visual><geometry><mesh filename="package://tb_like/meshes/wheel.stl"/></geometry></visual>
+    <collision><geometry><cylinder radius="0.033" length="0.018"/></geometry></collision>
+    <inertial><mass value="0.03"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1.7e-5"/></inertial>
+  </link>
+  <joint name="wheel_right_joint" type="continuous">
+    <parent link="base_link"/><child link="wheel_right_link"/>
+    <origin xyz="0 -0.08 0" rpy="1.5707963267948966 0 0"/><axis xyz="0 0 1"/>
+  </joint>
+  <link name="wheel_right_link">
+    <visual><geometry><mesh filename="package://tb_like/meshes/wheel.stl"/></geometry></visual>
+    <collision><geometry><cylinder radius="0.033" length="0.018"/></geometry></collision>
+    <inertial><mass value="0.03"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1.7e-5"/></inertial>
+  </link>
+  <joint name="caster_joint" type="fixed">
+    <parent link="base_link"/><child link="caster_link"/>
+    <origin xyz="0.07 0 -0.023"/>
+  </joint>
+  <link name="caster_link">
+    <collision><geometry><sphere radius="0.01"/></geometry></collision>
+  </link>
+  <joint name="caster_back_joint" type="fixed">
+    <parent link="base_link"/><child link="caster_back_link"/>
+    <origin xyz="-0.07 0 -0.022"/>
+  </joint>
+  <link name="caster_back_link">
+    <collision><geometry><sphere radius="0.01"/></geometry></collision>
+    <inertial><mass value="0.005"/><inertia ixx="2e-7" ixy="0" ixz="0" iyy="2e-7" iyz="0" izz="2e-7"/></inertial>
+  </link>
+  <joint name="sensor_joint" type="fixed">
+    <parent link="base_link"/><child link="line_sensor_link"/>
+    <origin xyz="0.09 0 -0.028"/>
+  </joint>
+  <link name="line_sensor_link"/>
+</robot>
+"""
+
+
+def write_third_party(root) -> str:
+    """Write ``tb_like/urdf/robot.urdf`` and ``tb_like/meshes/*.stl`` under root; returns the URDF path."""
+    pkg = root / "tb_like"
+    (pkg / "urdf").mkdir(parents=True)
+    (pkg / "meshes").mkdir()
+    trimesh.creation.box([0.16, 0.12, 0.03]).export(pkg / "meshes" / "body.stl")
+    trimesh.creation.cylinder(radius=0.033, height=0.018).export(pkg / "meshes" / "wheel.stl")
+    urdf = pkg / "urdf" / "robot.urdf"
+    urdf.write_text(THIRD_PARTY_URDF)
+    return str(urdf)
+
+
+@pytest.fixture
+def third_party_urdf(tmp_path) -> str:
+    return write_third_party(tmp_path)
+
+
+def minimal_urdf(extra: str = "", wheels: int = 2) -> str:
+    """A tiny diff-drive URDF with primitives only, for error cases."""
+    wheel = """
+  <joint name="w{i}" type="continuous"><parent link="base"/><child link="wl{i}"/>
+    <origin xyz="0 {y} 0" rpy="-1.5708 0 0"/><axis xyz="0 0 1"/></joint>
+  <link name="wl{i}"><collision><geometry><cylinder radius="0.02" length="0.01"/></geometry></collision>
+    <inertial><mass value="0.01"/><inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="2e-6"/></inertial></link>"""
+    body = "".join(wheel.format(i=i, y=0.05 if i == 0 else -0.05) for i in range(wheels))
+    return textwrap.dedent(f"""\
+        <robot name="mini">
+          <link name="base"><inertial><mass value="0.3"/><inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial>
+            <collision><origin xyz="0.05 0 -0.015"/><geometry><sphere radius="0.005"/></geometry></collision></link>
+          {body}{extra}
+        </robot>""")
+
+
+def yaw_of(quat: np.ndarray) -> float:
+    w, x, y, z = quat
+    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))

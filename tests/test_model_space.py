@@ -1,0 +1,109 @@
+"""Common model space: ports, relations, addresses, change costs, and the twin's rebuild rule."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from line_sensor import SensorArray
+from twin import ChangeCost, DigitalTwin, TwinError
+from twin.models import default_space
+
+
+def test_every_parameter_has_one_address_and_a_unit():
+    space = default_space()
+    assert len(space.addresses) == len(set(space.addresses))
+    for a in ("cad.L", "cad.R", "cad.S", "cad.m_c", "cad.m_w", "cad.d", "motion.mu", "motor.R_M", "motor.K"):
+        assert a in space.addresses and space.parameter(a).unit
+
+
+def test_io_relations_are_derived_from_matching_ports():
+    rel = {(r.source, r.port, r.target) for r in default_space().io_relations()}
+    assert rel == {
+        ("cad", "robot_description", "motion"),
+        ("environment", "floor_texture", "motion"),
+        ("motor", "wheel_torque", "motion"),
+        ("motion", "wheel_speed", "motor"),
+    }
+    assert ("motor", "motor_voltage") in default_space().unconnected_inputs()  # the controller's, later
+
+
+def test_change_costs_follow_the_influences_relation():
+    space = default_space()
+    assert space.set("cad.L", 0.05) is ChangeCost.REBUILD
+    assert space.set("motion.mu", 0.6) is ChangeCost.MODEL_FIELD
+    assert space.set("motor.R_M", 5.0) is ChangeCost.MODEL_FIELD
+
+
+@pytest.mark.parametrize("address,value,match", [
+    ("motion.muu", 0.5, "unknown parameter address; did you mean motion.mu"),
+    ("motion.mu", float("nan"), "must be finite"),
+    ("motion.mu", 5.0, "outside"),
+    ("cad.m_c", 0.0, "must be > 0"),
+    ("motor.K", "abc", "not a number"),
+])
+def test_bad_values_name_the_address(address, value, match):
+    with pytest.raises(TwinError, match=match):
+        default_space().set(address, value)
+
+
+def test_update_is_all_or_nothing():
+    space = default_space()
+    with pytest.raises(TwinError):
+        space.update({"motion.mu": 0.5, "motor.R_M": -1})
+    assert space.get("motion.mu") == 0.9
+
+
+def test_field_change_edits_the_model_and_cad_change_rebuilds_it():
+    twin = DigitalTwin(track="oval")
+    model = twin.model()
+    twin.set("motion.mu", 0.55)
+    twin.set("motor.R_M", 12.0)
+    assert twin.model() is model and twin.rebuilds == 1
+    assert model.geom(twin.info.tyre_geoms[0]).friction[0] == 0.55
+    assert model.actuator("left_motor").gainprm[0] == 12.0
+    twin.set("cad.L", 0.055)
+    rebuilt = twin.model()
+    assert twin.rebuilds == 2 and rebuilt is not model
+    assert twin.info.half_track == pytest.approx(0.055)
+    assert rebuilt.geom(twin.info.tyre_geoms[0]).friction[0] == 0.55  # field values survive a rebuild
+
+
+def test_cad_parameters_do_not_apply_to_a_given_urdf(third_party_urdf):
+    twin = DigitalTwin(robot_urdf=third_party_urdf)
+    with pytest.raises(TwinError, match="CAD parameters shape the generated robot only"):
+        twin.set("cad.L", 0.05)
+
+
+def test_sensor_array_geometry_is_centred():
+    offsets = SensorArray().lateral_offsets()
+    assert offsets.sum() == pytest.approx(0.0, abs=1e-15)
+    assert offsets[0] == pytest.approx(3.5 * 0.009525)  # sensor 0 on the left, as on a QTR-8
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "twin.run", *args], capture_output=True, text=True, timeout=120)
+
+
+def test_graph_cli_exports_json():
+    r = run_cli("graph", "--json", "--set", "motion.mu=0.6")
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    params = {p["address"]: p for m in data["models"] for p in m["parameters"]}
+    assert params["motion.mu"]["value"] == 0.6 and params["cad.L"]["unit"] == "m"
+    assert params["cad.L"]["change_cost"] == "rebuild"
+    assert {"kind": "influences", "source": "cad", "target": "motion"}.items() <= data["relations"][-3].items()
+
+
+def test_graph_cli_text_lists_models_and_relations():
+    r = run_cli("graph")
+    assert r.returncode == 0
+    assert "motion.mu = 0.9 -" in r.stdout and "cad --robot_description--> motion" in r.stdout
+
+
+@pytest.mark.parametrize("setting", ["motion.mu=nan", "nope.x=1", "motion.mu"])
+def test_graph_cli_bad_set_is_exit_2_one_line(setting):
+    r = run_cli("graph", "--set", setting)
+    assert r.returncode == 2
+    assert r.stderr.startswith("error: ") and r.stderr.count("\n") == 1

@@ -1,0 +1,91 @@
+"""DC motor model (Eqs. 6–7): datasheet fit, and MuJoCo's dcmotor against the closed-form solution."""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from motors import POLOLU_MP_6V_30_1, Datasheet, MotorConstants, MotorError
+from motors.actuator import add_dcmotor, read_fields, write_fields
+from motors.analytic import free_air_step
+from motors.datasheet import RPM
+
+
+def wheel_in_free_air(motor: MotorConstants, timestep: float) -> mujoco.MjModel:
+    spec = mujoco.MjSpec()
+    spec.option.timestep = timestep
+    body = spec.worldbody.add_body(name="wheel")
+    body.add_joint(name="axle", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.016, 0.0035, 0], mass=0.005)
+    add_dcmotor(spec, "motor", "axle", motor)
+    return spec.compile()
+
+
+def test_datasheet_fit_reproduces_stall_torque_and_no_load_speed_exactly():
+    ds = POLOLU_MP_6V_30_1
+    m = ds.constants()
+    assert m.R_M == pytest.approx(6.0 / 0.67, rel=1e-12)
+    assert m.stall_torque_wheel(6.0) == pytest.approx(ds.stall_torque, rel=1e-12)
+    assert m.no_load_speed_wheel(6.0) == pytest.approx(720 * RPM, rel=1e-12)
+    # gearbox losses lumped into b_M raise the model's no-load current above the datasheet's 40 mA
+    assert ds.derived_no_load_current() > ds.no_load_current
+
+
+@pytest.mark.parametrize("inductance", [0.5e-3, 0.0])
+def test_free_air_voltage_step_matches_closed_form_within_1_percent(inductance):
+    motor = POLOLU_MP_6V_30_1.constants().replace(L_M=inductance)
+    dt = 2e-5  # the electrical time constant L/R is 56 µs: resolve it
+    model = wheel_in_free_air(motor, dt)
+    data = mujoco.MjData(model)
+    data.ctrl[0] = 6.0
+    n = int(0.3 / dt)
+    t, speed, current = np.empty(n), np.empty(n), np.empty(n)
+    for k in range(n):
+        mujoco.mj_step(model, data)
+        t[k], speed[k] = data.time, data.qvel[0]
+        # with inductance the current is the actuator's state; without, it is algebraic (force = K i)
+        current[k] = data.act[0] if model.na else data.actuator_force[0] / motor.K
+    wheel_inertia = model.body_inertia[1, 2]
+    i_ref, w_ref = free_air_step(motor, 6.0, t, load_inertia=wheel_inertia)
+    assert np.max(np.abs(speed - w_ref)) < 0.01 * w_ref[-1]
+    assert np.max(np.abs(current - i_ref)) < 0.01 * np.max(np.abs(i_ref))
+    assert speed[-1] == pytest.approx(motor.no_load_speed_wheel(6.0), rel=1e-9)  # steady state exact
+    assert current[-1] == pytest.approx(motor.no_load_current(6.0), rel=1e-9)
+
+
+def test_closed_form_starts_at_rest_and_reaches_steady_state():
+    motor = POLOLU_MP_6V_30_1.constants()
+    i, w = free_air_step(motor, 6.0, np.array([0.0, 5.0]))
+    assert i[0] == pytest.approx(0.0, abs=1e-12) and w[0] == pytest.approx(0.0, abs=1e-12)
+    assert w[1] == pytest.approx(motor.no_load_speed_wheel(6.0), rel=1e-9)
+
+
+def test_field_edit_changes_the_running_motor_without_rebuild():
+    base = POLOLU_MP_6V_30_1.constants()
+    model = wheel_in_free_air(base, 1e-3)
+    changed = base.replace(R_M=2 * base.R_M, b_M=3 * base.b_M, J_rotor=5 * base.J_rotor)
+    write_fields(model, [0], changed)
+    assert read_fields(model, 0) == changed
+    data = mujoco.MjData(model)
+    data.ctrl[0] = 6.0
+    for _ in range(3000):
+        mujoco.mj_step(model, data)
+    assert data.qvel[0] == pytest.approx(changed.no_load_speed_wheel(6.0), rel=1e-6)
+
+
+def test_switching_inductance_on_needs_a_rebuild():
+    model = wheel_in_free_air(POLOLU_MP_6V_30_1.constants().replace(L_M=0.0), 1e-3)
+    with pytest.raises(MotorError, match="L_M"):
+        write_fields(model, [0], POLOLU_MP_6V_30_1.constants())
+
+
+@pytest.mark.parametrize("field,value", [("R_M", 0.0), ("K", -1.0), ("gear", math.nan), ("b_M", -1e-9)])
+def test_bad_constants_are_refused_by_name(field, value):
+    with pytest.raises(MotorError, match=f"motor.{field}"):
+        POLOLU_MP_6V_30_1.constants().replace(**{field: value})
+
+
+def test_inconsistent_datasheet_is_refused():
+    with pytest.raises(MotorError, match="no ideal DC motor"):
+        Datasheet(6.0, 1.0, 0.1, 100.0, 0.01, 30.0, 0.0, 0.0)
