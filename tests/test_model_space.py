@@ -107,3 +107,22 @@ def test_graph_cli_bad_set_is_exit_2_one_line(setting):
     r = run_cli("graph", "--set", setting)
     assert r.returncode == 2
     assert r.stderr.startswith("error: ") and r.stderr.count("\n") == 1
+
+
+def test_build_cli_builds_the_world_with_settings(tmp_path):
+    out = tmp_path / "world.xml"
+    r = run_cli("build", "--track", "oval", "--set", "cad.L=0.05", "--set", "motion.mu=0.7", "-o", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["half_track_m"] == pytest.approx(0.05)
+    assert summary["robot_mass_kg"] == pytest.approx(0.21)
+    assert summary["parameters"]["motion.mu"] == 0.7
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_path(str(out))
+    assert model.nu == 2 and model.na == 2
+
+
+def test_build_cli_unknown_track_is_exit_2():
+    r = run_cli("build", "--track", "nurburgring")
+    assert r.returncode == 2 and "unknown track" in r.stderr and r.stderr.count("\n") == 1

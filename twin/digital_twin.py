@@ -83,9 +83,10 @@ class DigitalTwin:
         return self.space.set(address, value)
 
     def update(self, changes: dict[str, float]) -> None:
+        """Set several parameters, all checked before any is stored."""
         for a in changes:
             if a.startswith("cad.") and self.robot_urdf is not None:
-                self.set(a, changes[a])
+                self.set(a, changes[a])  # raises: CAD parameters do not apply to a given URDF
         self.space.update(changes)
 
     def design(self) -> RobotDesign:
