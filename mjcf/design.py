@@ -6,9 +6,8 @@ Defaults are a Pololu 3pi+ 32U4 class line follower (see the README's table for 
 from __future__ import annotations
 
 import dataclasses
-import math
 
-from mjcf.errors import MjcfError
+from mjcf.errors import MjcfError, check_positive_fields
 
 
 @dataclasses.dataclass(frozen=True)
@@ -42,12 +41,7 @@ class RobotDesign:
     sensor_bar_width: float = 0.080
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise MjcfError(f"cad.{f.name}: must be a finite number, got {v!r}")
-            if f.name != "d" and v <= 0:
-                raise MjcfError(f"cad.{f.name}: must be > 0, got {v:g}")
+        check_positive_fields(self, "cad", may_be_zero=("d",))
         if self.chassis_radius < 0.01:
             raise MjcfError(f"cad.L: {self.L:g} m leaves no room for a chassis between the wheels")
         if self.R - self.chassis_thickness / 2 <= 0.002:

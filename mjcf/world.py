@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from PIL import Image
 
-from mjcf.errors import MjcfError
+from mjcf.errors import MjcfError, check_positive_fields
 from mjcf.robot_config import RobotConfig
 from mjcf.track import FloorTexture, Pose2D
 from mjcf.urdf_to_mjcf import RobotInfo, convert
@@ -58,10 +58,7 @@ class PhysicsOptions:
     impratio: float = 10.0
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise MjcfError(f"physics.{f.name}: must be a finite number > 0, got {v!r}")
+        check_positive_fields(self, "physics")
         if self.timestep > TYRE_SOLREF[0] / 2:
             raise MjcfError(f"physics.timestep: {self.timestep:g} s is too coarse for the tyre contacts (max {TYRE_SOLREF[0] / 2:g} s)")
 
