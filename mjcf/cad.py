@@ -18,7 +18,7 @@ import numpy as np
 import trimesh
 import yourdfpy
 from yourdfpy import (
-    Box, Collision, Color, Cylinder, Geometry, Inertial, Joint, Link, Material, Mesh, Robot, Sphere, Visual,
+    Collision, Color, Cylinder, Geometry, Inertial, Joint, Link, Material, Mesh, Robot, Sphere, Visual,
 )
 
 from mjcf.design import RobotDesign

@@ -14,11 +14,12 @@ so the URDF is read with yourdfpy and each link becomes a body built through ``m
 from __future__ import annotations
 
 import dataclasses
-import functools
+import hashlib
 import logging
 import math
 import os
 import re
+import tempfile
 import xml.etree.ElementTree as ET
 
 import mujoco
@@ -137,7 +138,8 @@ class _Converter:
         if len(roots) != 1:
             raise MjcfError(f"{path}: expected one root link, found {len(roots)} ({', '.join(roots) or 'a cycle'})")
         self.root = roots[0]
-        self.mesh_files: dict[str, str] = {}
+        self.mesh_files: dict[str, str] = {}  # asset name → file MuJoCo reads
+        self._mesh_keys: dict[str, tuple] = {}  # asset name → (URDF source file, scale), to share assets
         self.notes: list[str] = []
         self.link_T: dict[str, np.ndarray] = {self.root: np.eye(4)}  # link frame in the root frame
         self.geoms: dict[str, list[tuple[str, object]]] = {}  # link → [(geom name, urdf collision)]
@@ -169,7 +171,7 @@ class _Converter:
             pos, quat = _pos_quat(T)
             child = body.add_body(name=self.name(j.child), pos=pos, quat=quat)
             joint_moves = j.type in ("continuous", "revolute", "prismatic")
-            if j.type in ("continuous", "revolute", "prismatic"):
+            if joint_moves:
                 axis = np.asarray(j.axis if j.axis is not None else [1.0, 0.0, 0.0], dtype=float)
                 if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
                     raise MjcfError(f"{self.path}: joint {j.name} has a zero or invalid axis")
@@ -284,10 +286,6 @@ class _Converter:
         self.mesh_files[name] = source
         return name
 
-    @functools.cached_property
-    def _mesh_keys(self) -> dict:
-        return {}
-
 
 def _converted_mesh(source: str) -> str:
     """A mesh MuJoCo cannot read, converted by trimesh to a cached STL beside it (or in a temp dir)."""
@@ -295,9 +293,6 @@ def _converted_mesh(source: str) -> str:
         mesh = trimesh.load(source, force="mesh")
     except Exception as e:
         raise MjcfError(f"{source}: unreadable mesh ({e})") from None
-    import hashlib
-    import tempfile
-
     digest = hashlib.sha1(open(source, "rb").read()).hexdigest()[:12]
     out = os.path.join(tempfile.gettempdir(), "twin-meshes", f"{os.path.basename(source)}.{digest}.stl")
     if not os.path.isfile(out):
