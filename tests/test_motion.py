@@ -14,7 +14,9 @@ def twin():
 
 
 def run(twin, voltages, seconds, after):
-    """Step with constant voltages; return per-step (v, v_eq1, ω, ω_eq2) after ``after`` seconds."""
+    """Step with constant voltages; per step after ``after`` seconds: (v, v_eq1, ω, ω_eq2, v_sideways).
+
+    v is the axle midpoint's velocity along the heading, v_sideways across it (Eq. 3: zero)."""
     model = twin.model()
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("start").id)
@@ -32,7 +34,8 @@ def run(twin, voltages, seconds, after):
         heading = data.site_xmat[site].reshape(3, 3)[:, 0]
         tl, tr = (data.qvel[d] * s for d, s in zip(dofs, info.wheel_directions))
         R, L = info.wheel_radius, info.half_track
-        rows.append((vel[3:] @ heading, R * (tr + tl) / 2, vel[2], R * (tr - tl) / (2 * L)))
+        left = data.site_xmat[site].reshape(3, 3)[:, 1]
+        rows.append((vel[3:] @ heading, R * (tr + tl) / 2, vel[2], R * (tr - tl) / (2 * L), vel[3:] @ left))
     return np.array(rows)
 
 
@@ -40,7 +43,8 @@ def run(twin, voltages, seconds, after):
 def test_eqs_1_to_3_hold_on_high_friction_within_2_percent(twin, voltages):
     twin.set("motion.mu", 1.5)
     rows = run(twin, voltages, seconds=2.0, after=1.0)
-    v, v_eq, w, w_eq = rows.T
+    v, v_eq, w, w_eq, v_side = rows.T
+    assert np.max(np.abs(v_side)) <= 0.02 * max(np.abs(v_eq).max(), 0.05)  # Eq. 3: no sideways motion
     scale_v = max(np.abs(v_eq).max(), 1e-3)
     assert np.max(np.abs(v - v_eq)) <= 0.02 * max(np.abs(v_eq).max(), 0.02 * 0.5) + 1e-4
     if abs(voltages[0] - voltages[1]) > 0:
