@@ -104,10 +104,14 @@ class Track:
         d = self._seg[0]
         return Pose2D(float(self.centre[0, 0]), float(self.centre[0, 1]), math.atan2(d[1], d[0]))
 
+    def _segment_of(self, s: np.ndarray) -> np.ndarray:
+        """Index of the segment holding arc length ``s`` (already wrapped to [0, length))."""
+        return np.clip(np.searchsorted(self.arc_length, s, side="right") - 1, 0, len(self.centre) - 1)
+
     def point_at(self, s: np.ndarray) -> np.ndarray:
         """Centre-line points (..., 2) at arc lengths ``s`` in [m] (wrapped to the lap)."""
         s = np.mod(np.asarray(s, dtype=float), self.length_m)
-        i = np.clip(np.searchsorted(self.arc_length, s, side="right") - 1, 0, len(self.centre) - 1)
+        i = self._segment_of(s)
         f = (s - self.arc_length[i]) / self._seg_len[i]
         return self.centre[i] + f[..., None] * self._seg[i]
 
@@ -133,11 +137,11 @@ class Track:
 
     def signed_offset(self, xy: np.ndarray) -> np.ndarray:
         """Distance from the centre line in [m], positive on the left (inside of a CCW track)."""
+        xy = np.atleast_2d(np.asarray(xy, dtype=float))
         s, dist = self.project(xy)
         p = self.point_at(s)
-        i = np.clip(np.searchsorted(self.arc_length, s, side="right") - 1, 0, len(self.centre) - 1)
-        d = self._seg[i]
-        cross = d[:, 0] * (np.atleast_2d(xy)[:, 1] - p[:, 1]) - d[:, 1] * (np.atleast_2d(xy)[:, 0] - p[:, 0])
+        d = self._seg[self._segment_of(s)]
+        cross = d[:, 0] * (xy[:, 1] - p[:, 1]) - d[:, 1] * (xy[:, 0] - p[:, 0])
         return np.where(cross >= 0, dist, -dist)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 from mjcf import track as track_mod
 from mjcf.track import FloorTexture, Track
 from mjcf.track_image import track_from_png
@@ -39,8 +41,6 @@ def load_track(
 
 def _padded(texture: FloorTexture, margin_m: float) -> FloorTexture:
     """Pad an image with plain ground so a robot near its edge stays on the (finite) floor."""
-    import numpy as np
-
     pad = int(round(margin_m / texture.metres_per_pixel))
     ground = int(np.percentile(texture.grey, 90))
     grey = np.pad(texture.grey, pad, mode="constant", constant_values=ground)
