@@ -75,18 +75,21 @@ class DigitalTwin:
         self.rebuilds = 0  # how many times the world was compiled: tests and logs read it
 
     # --- parameters
+    def _check_applies(self, address: str) -> None:
+        """CAD parameters shape the generated robot; a given URDF is its own CAD model."""
+        if address.startswith("cad.") and self.robot_urdf is not None:
+            self.space.parameter(address)  # an unknown address is reported as such first
+            raise TwinError(f"{address}: the robot comes from {self.robot_urdf}; CAD parameters shape the generated robot only")
+
     def set(self, address: str, value: float) -> ChangeCost:
         """Set a model-space parameter; returns what it costs (applied at the next :meth:`model`)."""
-        if address.startswith("cad.") and self.robot_urdf is not None:
-            self.space.parameter(address)
-            raise TwinError(f"{address}: the robot comes from {self.robot_urdf}; CAD parameters shape the generated robot only")
+        self._check_applies(address)
         return self.space.set(address, value)
 
     def update(self, changes: dict[str, float]) -> None:
         """Set several parameters, all checked before any is stored."""
-        for a in changes:
-            if a.startswith("cad.") and self.robot_urdf is not None:
-                self.set(a, changes[a])  # raises: CAD parameters do not apply to a given URDF
+        for address in changes:
+            self._check_applies(address)
         self.space.update(changes)
 
     def design(self) -> RobotDesign:

@@ -10,7 +10,7 @@ import dataclasses
 
 from mjcf.design import DESIGN_UNITS, RobotDesign
 from mjcf.track import LINE_WIDTH_M
-from mjcf.world import PhysicsOptions
+from mjcf.world import TYRE_SOLREF, PhysicsOptions
 from motors import POLOLU_MP_6V_30_1
 from twin.model_space import ChangeCost, ModelSpace, Parameter, PartialModel, Port
 
@@ -82,7 +82,8 @@ def motion_model() -> PartialModel:
         parameters=(
             Parameter("mu", "-", phys.tyre_mu, 0.05, 2.0, F, "tyre–floor friction coefficient", True),
             Parameter("floor_mu", "-", phys.floor_mu, 0.05, 2.0, F, "floor friction for non-tyre contacts", True),
-            Parameter("timestep", "s", phys.timestep, 1e-5, 0.0025, F, "physics step", True),
+            # the tyre contact needs at least two steps per time constant (PhysicsOptions checks the same)
+            Parameter("timestep", "s", phys.timestep, 1e-5, TYRE_SOLREF[0] / 2, F, "physics step", True),
             Parameter("impratio", "-", phys.impratio, 1.0, 100.0, F, "friction/normal impedance ratio", True),
         ),
         realised_by="MuJoCo physics (mjcf.world)",
