@@ -1,0 +1,110 @@
+/* The mjcb_control callback: sensors -> firmware -> motor voltages, at the firmware's period.
+ *
+ * It calls no MuJoCo function (so the shared library need not link libmujoco): rangefinder sensors do the
+ * raycasts, and the callback reads their hits, the floor texture and the robot's state from mjModel/mjData.
+ * Everything per simulation lives in d->userdata, which mujoco.batch saves with each simulation's state;
+ * so many simulations with different gains and seeds run on a thread pool with no Python per step.
+ */
+#include <math.h>
+#include <string.h>
+
+#include <mujoco/mujoco.h>
+
+#include "twin_core.h"
+
+static lf_sim *sim_of(const mjModel *m, mjData *d) {
+  if (m->nuserdata < (mjtSize)(sizeof(lf_sim) / sizeof(mjtNum))) return 0;
+  if (d->userdata[0] != LF_MAGIC) return 0;
+  return (lf_sim *)d->userdata;
+}
+
+/* Electrical power drawn by a DC motor, u i (the driver returns nothing to the battery). */
+static double motor_power(const mjModel *m, const mjData *d, int32_t a) {
+  double current;
+  if (m->actuator_actnum[a] > 0) current = d->act[m->actuator_actadr[a]];
+  else current = d->actuator_force[a] / m->actuator_gainprm[a * mjNGAIN + 1];
+  return fmax(0.0, d->ctrl[a] * current);
+}
+
+static void read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
+  lf_texture tex;
+  int32_t i, t = s->texture_id;
+  tex.data = m->tex_data + m->tex_adr[t];
+  tex.width = m->tex_width[t];
+  tex.height = m->tex_height[t];
+  tex.nchannel = m->tex_nchannel[t];
+  tex.origin_x = s->texture_origin_x;
+  tex.origin_y = s->texture_origin_y;
+  tex.metres_per_pixel = s->texture_metres_per_pixel;
+  for (i = 0; i < s->nsensor; i++) {
+    const mjtNum *hit = d->sensordata + s->sensor_adr[i]; /* dist, x, y, z */
+    double reflectance = 0.0, height = hit[0];
+    if (height >= 0.0)
+      reflectance = lf_footprint_reflectance(&tex, hit[1], hit[2], lf_footprint_radius(&s->sensor, height));
+    else
+      height = 0.0; /* nothing under the sensor: no light comes back */
+    if (i == 0) *height0 = height;
+    s->raw[i] = lf_raw_reading(&s->sensor, reflectance, height, lf_noise(&s->rng));
+  }
+}
+
+static void write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0) {
+  lf_record *r = (lf_record *)(s + 1) + (s->records_written % s->record_capacity);
+  const mjtNum *q = d->xquat + 4 * s->root_body;
+  int32_t i;
+  (void)m;
+  r->time_s = d->time;
+  r->x_m = d->site_xpos[3 * s->axle_site];
+  r->y_m = d->site_xpos[3 * s->axle_site + 1];
+  r->yaw_rad = atan2(2.0 * (q[0] * q[3] + q[1] * q[2]), 1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
+  r->e_rad = s->fw.e;
+  r->v_mps = s->fw.v;
+  r->omega_radps = s->fw.omega;
+  r->u_left_v = d->ctrl[s->actuator_left];
+  r->u_right_v = d->ctrl[s->actuator_right];
+  r->wheel_left_radps = d->qvel[s->dof_left];
+  r->wheel_right_radps = d->qvel[s->dof_right];
+  r->position = s->fw.position;
+  r->line_seen = s->fw.line_seen;
+  r->mode = mode;
+  r->energy_j = s->energy_j;
+  r->height_m = height0;
+  for (i = 0; i < LF_MAX_SENSORS; i++) {
+    r->raw_us[i] = i < s->nsensor ? s->raw[i] : 0.0;
+    r->calibrated[i] = i < s->nsensor ? s->fw.value[i] : 0.0;
+  }
+  s->records_written++;
+}
+
+void lf_control_callback(const mjModel *m, mjData *d) {
+  lf_sim *s = sim_of(m, d);
+  double next_tick, height0 = 0.0, mode;
+  if (!s) return;
+  if (d->time > s->last_time) {
+    s->energy_j += (d->time - s->last_time) *
+                   (motor_power(m, d, s->actuator_left) + motor_power(m, d, s->actuator_right));
+    s->last_time = d->time;
+  }
+  /* a tick is due when time reaches phase start + ticks * dt (half a step of slack for rounding) */
+  next_tick = s->phase_start_time + (double)s->ticks * s->firmware.dt_s;
+  if (d->time < next_tick - 0.5 * s->timestep) return;
+  mode = s->fw.mode;
+  read_sensors(m, d, s, &height0);
+  lf_step(&s->fw, &s->firmware, s->raw);
+  d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
+  d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
+  s->ticks++;
+  write_record(m, d, s, mode, height0);
+}
+
+/* Layout check for Python's ctypes mirrors, and the MuJoCo header this library was compiled against. */
+void lf_sizes(int64_t *out) {
+  out[0] = (int64_t)sizeof(lf_sim);
+  out[1] = (int64_t)sizeof(lf_record);
+  out[2] = (int64_t)sizeof(lf_params);
+  out[3] = (int64_t)sizeof(lf_state);
+  out[4] = (int64_t)sizeof(lf_sensor_model);
+  out[5] = (int64_t)mjVERSION_HEADER;
+  out[6] = (int64_t)sizeof(mjtNum);
+  out[7] = LF_MAX_SENSORS;
+}

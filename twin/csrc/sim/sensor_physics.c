@@ -1,0 +1,64 @@
+#include "sensor_physics.h"
+
+#include <math.h>
+
+double lf_footprint_radius(const lf_sensor_model *s, double height_m) {
+  return s->aperture_m + height_m * tan(s->half_angle_rad);
+}
+
+double lf_footprint_reflectance(const lf_texture *tex, double x, double y, double radius_m) {
+  const double mpp = tex->metres_per_pixel;
+  const double r2 = radius_m * radius_m;
+  int32_t c0 = (int32_t)floor((x - radius_m - tex->origin_x) / mpp);
+  int32_t c1 = (int32_t)floor((x + radius_m - tex->origin_x) / mpp);
+  int32_t r0 = (int32_t)floor(tex->height - (y + radius_m - tex->origin_y) / mpp);
+  int32_t r1 = (int32_t)floor(tex->height - (y - radius_m - tex->origin_y) / mpp);
+  double sum = 0.0, weight = 0.0;
+  int32_t r, c;
+  if (c0 < 0) c0 = 0;
+  if (r0 < 0) r0 = 0;
+  if (c1 > tex->width - 1) c1 = tex->width - 1;
+  if (r1 > tex->height - 1) r1 = tex->height - 1;
+  for (r = r0; r <= r1; r++) {
+    double dy = tex->origin_y + (tex->height - r - 0.5) * mpp - y;
+    for (c = c0; c <= c1; c++) {
+      double dx = tex->origin_x + (c + 0.5) * mpp - x;
+      double q = (dx * dx + dy * dy) / r2;
+      if (q < 1.0) {
+        double w = (1.0 - q) * (1.0 - q);
+        sum += w * tex->data[((int64_t)r * tex->width + c) * tex->nchannel];
+        weight += w;
+      }
+    }
+  }
+  if (weight > 0.0) return sum / (255.0 * weight);
+  /* a footprint smaller than a texel: the texel under the point, if the point is on the texture */
+  c = (int32_t)floor((x - tex->origin_x) / mpp);
+  r = (int32_t)floor(tex->height - (y - tex->origin_y) / mpp);
+  if (c < 0 || r < 0 || c >= tex->width || r >= tex->height) return 0.0;
+  return tex->data[((int64_t)r * tex->width + c) * tex->nchannel] / 255.0;
+}
+
+uint16_t lf_raw_reading(const lf_sensor_model *s, double reflectance, double height_m, double noise) {
+  double h = height_m / s->falloff_height_m;
+  double current = reflectance * (1.0 + s->noise_rel * noise) / (1.0 + h * h);
+  double t;
+  if (!(current > 0.0)) return (uint16_t)s->timeout_us;
+  t = s->t_unit_us / current;
+  if (t >= s->timeout_us) return (uint16_t)s->timeout_us;
+  return (uint16_t)(t + 0.5);
+}
+
+uint64_t lf_rng_next(uint64_t *state) {
+  uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+double lf_noise(uint64_t *state) {
+  double sum = 0.0;
+  int i;
+  for (i = 0; i < 4; i++) sum += (double)(lf_rng_next(state) >> 11) * (1.0 / 9007199254740992.0);
+  return (sum - 2.0) * 1.7320508075688772; /* variance of the sum is 4/12 */
+}
