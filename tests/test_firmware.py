@@ -1,0 +1,171 @@
+"""Firmware (Eqs. 8–11): hand-computed cases, C equal to the Python reference, and an ATmega328P build."""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+import random
+import shutil
+import subprocess
+
+import pytest
+
+from line_sensor.processing import read_calibrated, read_line, line_angle
+from twin import controller as ref
+from twin.core import FwState, Params, lib, params_to_c
+
+FIRMWARE = os.path.join(os.path.dirname(__file__), "..", "twin", "csrc", "firmware")
+PITCH, S = 0.009525, 0.040
+
+
+def params(**kw) -> ref.ControlParams:
+    base = dict(count=8, pitch_m=PITCH, sensor_distance_m=S, v_max=0.8, k_b=0.6, k_p=12.0, k_i=3.0, k_d=0.4,
+                dt_s=0.005, wheel_radius_m=0.016, half_track_m=0.0425, wheel_speed_max=75.4, accel_max=5.0,
+                integral_limit=0.5, cal_duty=0.15, cal_sweep_rad=1.0, cal_sweeps=2)
+    base.update(kw)
+    return ref.ControlParams(**base)
+
+
+# --- Eq. 8 by hand
+def test_eq8_scales_between_calibrated_min_and_max():
+    cal_min, cal_max = [200, 200, 200, 100], [2200, 2200, 2200, 100]
+    # (1200-200)*1000/2000 = 500; below min clips to 0; above max clips to 1000; max == min reads 0
+    assert read_calibrated([1200, 100, 3000, 100], cal_min, cal_max) == [500, 0, 1000, 0]
+    # integer division truncates as the MCU does: (201-200)*1000/2000 = 0.5 -> 0, (203-200)*1000/2000 = 1.5 -> 1
+    assert read_calibrated([201, 203, 2199, 100], cal_min, cal_max) == [0, 1, 999, 0]
+
+
+# --- Eq. 9 by hand
+def test_eq9_centred_line_is_zero_angle():
+    pos, seen, _ = read_line([0, 0, 0, 1000, 1000, 0, 0, 0], 0)
+    assert (pos, seen) == (3500, True)  # (1000*3000 + 1000*4000) / 2000
+    assert line_angle(pos, 8, PITCH, S) == 0.0
+
+
+def test_eq9_line_under_sensor_zero_is_left_and_positive():
+    pos, seen, last = read_line([1000, 0, 0, 0, 0, 0, 0, 0], 3500)
+    assert (pos, seen, last) == (0, True, 0)
+    assert line_angle(pos, 8, PITCH, S) == pytest.approx(math.atan2(3.5 * PITCH, S), abs=1e-15)
+    assert line_angle(7000, 8, PITCH, S) == pytest.approx(-math.atan2(3.5 * PITCH, S), abs=1e-15)
+
+
+def test_eq9_noise_threshold_and_weights():
+    # 50 is not above the noise threshold; 51 is: (51*1000 + 400*2000) / 451 = 1886.9 -> 1886
+    assert read_line([0, 51, 400, 50, 0, 0, 0, 0], 0)[0] == (51 * 1000 + 400 * 2000) // 451 == 1886
+
+
+def test_eq9_lost_line_reports_the_side_last_seen():
+    faint = [150, 120, 60, 0, 0, 60, 120, 150]  # nothing above 200: the line is lost
+    assert read_line(faint, 1000) == (0, False, 1000)  # last seen on the left
+    assert read_line(faint, 6000) == (7000, False, 6000)  # last seen on the right
+    assert read_line(faint, 3500) == (7000, False, 3500)  # Pololu: centre counts as right
+
+
+# --- Eqs. 10–11 by hand
+def test_eq10_11_two_ticks_by_hand():
+    p = params(accel_max=1000.0)
+    s = ref.FirmwareState.uncalibrated(8, 2500)
+    ref.control(s, p, 0.1)
+    assert s.v == pytest.approx(0.8 - 0.6 * 0.1)
+    assert s.omega == pytest.approx(12.0 * 0.1 + 3.0 * 0.1 * 0.005 + 0.0)  # no derivative on the first tick
+    s.tick = 1
+    ref.control(s, p, -0.2)
+    assert s.v == pytest.approx(0.8 - 0.6 * 0.2)
+    integral = 0.1 * 0.005 - 0.2 * 0.005
+    assert s.omega == pytest.approx(12.0 * -0.2 + 3.0 * integral + 0.4 * (-0.2 - 0.1) / 0.005)
+
+
+def test_eq10_speed_ramp_and_floor():
+    p = params(accel_max=4.0, k_b=10.0)
+    s = ref.FirmwareState.uncalibrated(8, 2500)
+    ref.control(s, p, 0.0)
+    assert s.v == pytest.approx(4.0 * 0.005)  # ramped from rest
+    ref.control(s, p, 0.5)
+    assert s.v == 0.0  # v_max - K_B|e| < 0 is held at 0
+
+
+def test_wheel_duties_keep_turn_rate_when_saturated():
+    p = params()
+    full = p.wheel_radius_m * p.wheel_speed_max  # m/s at duty 1
+    left, right = ref.wheel_duties(p, full, 2.0)
+    assert right == 1.0
+    assert (right - left) * full == pytest.approx(2 * 2.0 * p.half_track_m)  # ω kept exactly
+    assert ref.wheel_duties(p, 0.0, 1000.0) == (-1.0, 1.0)
+
+
+# --- C equals Python
+def c_state(count: int, timeout: int) -> FwState:
+    s = FwState()
+    lib.lf_calibrate_reset(ctypes.byref(s), timeout)
+    return s
+
+
+def assert_same(c: FwState, py: ref.FirmwareState, count: int) -> None:
+    assert list(c.cal_min[:count]) == py.cal_min and list(c.cal_max[:count]) == py.cal_max
+    assert list(c.value[:count]) == py.value
+    assert (c.position, c.last_position, bool(c.line_seen), c.mode, c.tick) == (
+        py.position, py.last_position, py.line_seen, py.mode, py.tick)
+    # bit equality, not closeness: the same operations in the same order
+    for name in ("e", "e_prev", "integral", "v", "omega", "duty_left", "duty_right"):
+        assert getattr(c, name) == getattr(py, name), name
+
+
+@pytest.mark.parametrize("count", [8, 5, 16])
+def test_c_firmware_equals_python_reference(count):
+    rng = random.Random(count)
+    p = params(count=count, cal_sweeps=1, accel_max=3.0)
+    cp = params_to_c(p)
+    c = c_state(count, 2500)
+    py = ref.FirmwareState.uncalibrated(count, 2500)
+    lib.lf_reset(ctypes.byref(c), ref.CALIBRATE)
+    py.reset(ref.CALIBRATE)
+    centre = rng.uniform(0, count - 1)
+    raw_t = (ctypes.c_uint16 * 16)()
+    n_cal = ref.calibration_ticks(p)
+    assert lib.lf_calibration_ticks(ctypes.byref(cp)) == n_cal
+    for tick in range(n_cal + 600):
+        if tick == n_cal + 1:
+            assert c.mode == py.mode == ref.IDLE
+            lib.lf_reset(ctypes.byref(c), ref.RUN)
+            py.reset(ref.RUN)
+        centre = min(count + 1.0, max(-2.0, centre + rng.gauss(0, 0.3)))  # wander, off both ends too
+        raw = [int(min(2500, 200 + 2200 * math.exp(-((i - centre) ** 2)) + rng.randint(0, 40))) for i in range(count)]
+        for i, r in enumerate(raw):
+            raw_t[i] = r
+        lib.lf_step(ctypes.byref(c), ctypes.byref(cp), raw_t)
+        ref.firmware_step(py, p, raw)
+        assert_same(c, py, count)
+
+
+def test_c_line_angle_and_duties_equal_python():
+    cp = params_to_c(params())
+    left, right = ctypes.c_double(), ctypes.c_double()
+    rng = random.Random(1)
+    for _ in range(2000):
+        pos = rng.randint(0, 7000)
+        assert lib.lf_line_angle(pos, 8, PITCH, S) == line_angle(pos, 8, PITCH, S)
+        v, w = rng.uniform(-2, 2), rng.uniform(-80, 80)
+        lib.lf_wheel_duties(ctypes.byref(cp), v, w, ctypes.byref(left), ctypes.byref(right))
+        assert (left.value, right.value) == ref.wheel_duties(params(), v, w)
+
+
+# --- the robot's MCU
+def test_firmware_builds_for_atmega328p(tmp_path):
+    avr_gcc, avr_size = shutil.which("avr-gcc"), shutil.which("avr-size")
+    if not (avr_gcc and avr_size):
+        if os.environ.get("CI"):
+            pytest.fail("avr-gcc is missing: .ci/run installs gcc-avr and avr-libc")
+        pytest.skip("avr-gcc not installed (apt-get install gcc-avr avr-libc)")
+    elf = tmp_path / "line_follower.elf"
+    subprocess.run(
+        [avr_gcc, "-mmcu=atmega328p", "-Os", "-std=c99", "-Wall", "-Wextra", "-Werror", "-o", str(elf),
+         os.path.join(FIRMWARE, "avr_main.c"), os.path.join(FIRMWARE, "line_follower.c"), "-lm"],
+        check=True, capture_output=True, text=True,
+    )
+    out = subprocess.run([avr_size, "-A", str(elf)], check=True, capture_output=True, text=True).stdout
+    size = {line.split()[0]: int(line.split()[1]) for line in out.splitlines() if line.startswith(".")}
+    flash, ram = size[".text"] + size.get(".data", 0), size.get(".data", 0) + size.get(".bss", 0)
+    print(f"ATmega328P: flash {flash} B of 32768, RAM {ram} B of 2048")
+    assert flash < 32768 - 512  # room left for the 512 B Arduino bootloader
+    assert ram < 2048 // 2  # half the RAM stays for the stack and the drivers
