@@ -135,14 +135,18 @@ class Track:
         s = self.arc_length[cand[rows, k]] + t[rows, k] * self._seg_len[cand[rows, k]]
         return np.mod(s, self.length_m), dist[rows, k]
 
-    def signed_offset(self, xy: np.ndarray) -> np.ndarray:
-        """Distance from the centre line in [m], positive on the left (inside of a CCW track)."""
+    def locate(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Arc-length progress in [0, length) and signed distance from the centre line (+ on the left), in [m]."""
         xy = np.atleast_2d(np.asarray(xy, dtype=float))
         s, dist = self.project(xy)
         p = self.point_at(s)
         d = self._seg[self._segment_of(s)]
         cross = d[:, 0] * (xy[:, 1] - p[:, 1]) - d[:, 1] * (xy[:, 0] - p[:, 0])
-        return np.where(cross >= 0, dist, -dist)
+        return s, np.where(cross >= 0, dist, -dist)
+
+    def signed_offset(self, xy: np.ndarray) -> np.ndarray:
+        """Distance from the centre line in [m], positive on the left (inside of a CCW track)."""
+        return self.locate(xy)[1]
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min_xy, max_xy) of the centre line in [m]."""

@@ -28,6 +28,7 @@ from mjcf.errors import MjcfError, check_positive_fields
 from mjcf.robot_config import RobotConfig
 from mjcf.track import FloorTexture, Pose2D
 from mjcf.urdf_to_mjcf import RobotInfo, convert
+from line_sensor.geometry import SensorArray
 from motors import MotorConstants
 from motors.actuator import add_dcmotor
 
@@ -35,6 +36,8 @@ FLOOR = "floor"
 MOTORS = ("left_motor", "right_motor")
 AXLE_SITE = "axle_centre"
 SENSOR_SITE = "sensor_array"
+LINE_SENSOR = "line_sensor_{}"  # site and rangefinder of reflectance sensor i (0 = leftmost)
+RANGEFINDER_DATA = (1 << int(mujoco.mjtRayDataField.mjRAYDATA_DIST)) | (1 << int(mujoco.mjtRayDataField.mjRAYDATA_POINT))
 TYRE_SOLREF = (0.005, 1.0)  # [s, -] contact time constant and damping ratio; needs timestep <= 2.5 ms
 START_KEY = "start"
 
@@ -80,6 +83,7 @@ def build_world(
     motor: MotorConstants,
     physics: PhysicsOptions = PhysicsOptions(),
     config: RobotConfig = RobotConfig(),
+    sensors: SensorArray = SensorArray(),
 ) -> tuple[mujoco.MjSpec, RobotInfo]:
     """The whole world as an MjSpec; compile it with ``spec.compile()``.
 
@@ -91,6 +95,8 @@ def build_world(
       motor: constants of both drive motors.
       physics: timestep, friction and supply voltage.
       config: names of wheels, caster and sensor mount in the URDF.
+      sensors: the reflectance array: one downward rangefinder (distance and hit point) per sensor, on
+        a site across the sensor mount's y axis.
     """
     spec = mujoco.MjSpec()
     spec.modelname = "line_follower_world"
@@ -122,7 +128,15 @@ def build_world(
     root.pos = [start.x, start.y, info.ground_height]
     root.quat = [math.cos(start.yaw / 2), 0.0, 0.0, math.sin(start.yaw / 2)]
     root.add_site(name=AXLE_SITE, pos=list(info.axle_centre), size=[0.003, 0, 0], group=4)
-    spec.body(info.sensor_body).add_site(name=SENSOR_SITE, size=[0.003, 0, 0], group=4)
+    mount = spec.body(info.sensor_body)
+    mount.add_site(name=SENSOR_SITE, size=[0.003, 0, 0], group=4)
+    for i, y in enumerate(sensors.lateral_offsets()):
+        # a site's z axis is its ray: turned half a turn about x, it points at the floor
+        mount.add_site(name=LINE_SENSOR.format(i), pos=[0.0, float(y), 0.0], quat=[0.0, 1.0, 0.0, 0.0],
+                       size=[0.001, 0, 0], group=4)
+        ray = spec.add_sensor(name=LINE_SENSOR.format(i), type=mujoco.mjtSensor.mjSENS_RANGEFINDER,
+                              objtype=mujoco.mjtObj.mjOBJ_SITE, objname=LINE_SENSOR.format(i))
+        ray.intprm[0] = RANGEFINDER_DATA
     for g in info.tyre_geoms:
         geom = spec.geom(g)
         geom.priority = 1  # this geom's friction governs its contacts

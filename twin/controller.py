@@ -161,3 +161,20 @@ def firmware_step(s: FirmwareState, p: ControlParams, raw: Sequence[int]) -> Non
     else:
         s.duty_left = s.duty_right = 0.0
     s.tick += 1
+
+
+# Nominal firmware settings: the control model's defaults in the model space (``control.*``).
+# Gains were hand-tuned on the default robot and track to complete the lap with margin; the tuner improves them.
+DEFAULTS = {
+    "v_max": 0.6,          # [m/s] about half the 3pi+'s top speed at 6 V
+    "k_b": 0.5,            # [m/s/rad]
+    "k_p": 15.0,           # [1/s]
+    "k_i": 0.0,            # [1/s²]
+    "k_d": 0.3,            # [-]
+    "dt": 0.005,           # [s] a 200 Hz loop: a QTR-RC read takes up to its 2.5 ms timeout
+    "accel_max": 3.0,      # [m/s²] below the ≈ 9 m/s² grip limit at μ = 0.9: launches without wheelspin
+    "integral_limit": 0.5, # [rad·s]
+    "cal_duty": 0.15,      # Pololu's example turns at 40/400 of full speed while calibrating
+    "cal_sweep": 1.0,      # [rad] nominal sweep each way; the outer sensors need ≈ 0.7 rad at S = 40 mm
+    "cal_sweeps": 2,
+}

@@ -21,9 +21,13 @@ from mjcf.design import RobotDesign
 from mjcf.robot_config import RobotConfig
 from mjcf.track import FloorTexture, Track
 from mjcf.urdf_to_mjcf import RobotInfo
-from mjcf.world import FLOOR, MOTORS, PhysicsOptions, build_world, compile_world, write_texture_png
+from mjcf.world import AXLE_SITE, FLOOR, MOTORS, SENSOR_SITE, PhysicsOptions, build_world, compile_world, write_texture_png
+from line_sensor.geometry import SensorArray, SensorError
+from line_sensor.reflectance import SensorModel
 from motors import MotorConstants
 from motors.actuator import write_fields
+from twin import core
+from twin.controller import ControlParams
 from twin.environment import load_track
 from twin.errors import TwinError
 from twin.model_space import ChangeCost, ModelSpace
@@ -73,6 +77,7 @@ class DigitalTwin:
         self.texture: FloorTexture | None = None
         self.info: RobotInfo | None = None
         self.rebuilds = 0  # how many times the world was compiled: tests and logs read it
+        self.sensor_distance = 0.0  # S measured on the built robot: axle centre to sensor array [m]
 
     # --- parameters
     def _check_applies(self, address: str) -> None:
@@ -105,6 +110,38 @@ class DigitalTwin:
             return MotorConstants(**v)
         except ValueError as e:
             raise TwinError(str(e)) from None
+
+    def sensor_array(self) -> SensorArray:
+        return SensorArray(count=int(self.space.get("sensor.count")), pitch=self.space.get("sensor.pitch"))
+
+    def sensor_model(self) -> SensorModel:
+        v = self.space.model_values("sensor")
+        try:
+            return SensorModel(
+                aperture_m=v["aperture"], half_angle_rad=v["half_angle"], falloff_height_m=v["falloff_height"],
+                t_unit_us=v["t_unit"], timeout_us=v["timeout"], noise_rel=v["noise"],
+            )
+        except SensorError as e:
+            raise TwinError(str(e)) from None
+
+    def control_params(self) -> ControlParams:
+        """The firmware's parameters: gains from ``control.*``, geometry measured on the built robot."""
+        model = self.model()
+        c = self.space.model_values("control")
+        steps = c["dt"] / model.opt.timestep
+        if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
+            raise TwinError(
+                f"control.dt: {c['dt']:g} s is not a whole number of physics steps ({model.opt.timestep:g} s)"
+            )
+        supply = self.space.get("motor.supply_voltage")
+        return ControlParams(
+            count=int(self.space.get("sensor.count")), pitch_m=self.space.get("sensor.pitch"),
+            sensor_distance_m=self.sensor_distance, v_max=c["v_max"], k_b=c["kb"], k_p=c["kp"], k_i=c["ki"],
+            k_d=c["kd"], dt_s=c["dt"], wheel_radius_m=self.info.wheel_radius, half_track_m=self.info.half_track,
+            wheel_speed_max=self.motor().no_load_speed_wheel(supply), accel_max=c["accel_max"],
+            integral_limit=c["integral_limit"], cal_duty=c["cal_duty"], cal_sweep_rad=c["cal_sweep"],
+            cal_sweeps=int(c["cal_sweeps"]),
+        )
 
     def physics(self) -> PhysicsOptions:
         v = self.space.model_values("motion")
@@ -160,14 +197,32 @@ class DigitalTwin:
             self._ensure_track()
             urdf = self._urdf()
             spec, info = build_world(
-                urdf, self.texture, self._texture_png(), self.track.start_pose(), self.motor(), self.physics(), self.robot_config
+                urdf, self.texture, self._texture_png(), self.track.start_pose(), self.motor(), self.physics(),
+                self.robot_config, self.sensor_array(),
             )
+            spec.nuserdata = core.SIM_WORDS + RECORD_CAPACITY * core.RECORD_WORDS  # the C loop's state and trace
             self._model = compile_world(spec, urdf)
+            self.sensor_distance = _sensor_distance(self._model, self.track.start_pose().yaw)
             self._spec, self.info, self._built_key = spec, info, key
             self.rebuilds += 1
             log.info("built world: robot %s on track %s", urdf, self.track.name)
         apply_fields(self._model, self.info, self.motor(), self.physics())
         return self._model
+
+
+RECORD_CAPACITY = 64  # trace ring per simulation, in control ticks; the runner drains it more often
+
+
+def _sensor_distance(model: mujoco.MjModel, yaw: float) -> float:
+    """S: how far the sensor array sits ahead of the axle centre along the heading, at the start pose [m]."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_kinematics(model, data)
+    ahead = data.site(SENSOR_SITE).xpos[:2] - data.site(AXLE_SITE).xpos[:2]
+    s = float(ahead @ np.array([np.cos(yaw), np.sin(yaw)]))
+    if s <= 0.005:
+        raise TwinError(f"sensor mount: the array is {s * 1000:.1f} mm ahead of the axle; a line follower needs it in front")
+    return s
 
 
 def apply_fields(model: mujoco.MjModel, info: RobotInfo, motor: MotorConstants, physics: PhysicsOptions) -> None:

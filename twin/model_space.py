@@ -50,6 +50,7 @@ class Parameter:
       cost: what a change invalidates.
       description: what it is, with its source where it has one.
       strictly_positive: lower bound is exclusive (e.g. masses).
+      integer: only whole numbers (e.g. a sensor count).
     """
 
     name: str
@@ -60,6 +61,7 @@ class Parameter:
     cost: ChangeCost
     description: str = ""
     strictly_positive: bool = False
+    integer: bool = False
 
     def check(self, address: str, value: float) -> float:
         try:
@@ -72,6 +74,8 @@ class Parameter:
             raise TwinError(f"{address}: must be > 0, got {v:g} {self.unit}")
         if not (self.lower <= v <= self.upper):
             raise TwinError(f"{address}: {v:g} {self.unit} is outside [{self.lower:g}, {self.upper:g}]")
+        if self.integer and v != round(v):
+            raise TwinError(f"{address}: must be a whole number, got {v:g}")
         return v
 
 

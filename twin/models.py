@@ -11,10 +11,13 @@ import dataclasses
 from mjcf.design import DESIGN_UNITS, RobotDesign
 from mjcf.track import LINE_WIDTH_M
 from mjcf.world import TYRE_SOLREF, PhysicsOptions
+from line_sensor.geometry import SensorArray
+from line_sensor.reflectance import SensorModel
 from motors import POLOLU_MP_6V_30_1
+from twin.controller import DEFAULTS as CONTROL_DEFAULTS
 from twin.model_space import ChangeCost, ModelSpace, Parameter, PartialModel, Port
 
-R, F = ChangeCost.REBUILD, ChangeCost.MODEL_FIELD
+R, F, C = ChangeCost.REBUILD, ChangeCost.MODEL_FIELD, ChangeCost.CONTROLLER
 
 _CAD_DOC = {
     "L": ("half the wheel separation (Eq. 2)", 0.02, 0.2),
@@ -110,13 +113,62 @@ def motor_model() -> PartialModel:
     )
 
 
+def sensor_model() -> PartialModel:
+    array, resp = SensorArray(), SensorModel()
+    return PartialModel(
+        "sensor",
+        "pose over the textured track → raw RC readings s_i,raw (raycasts, footprint, response, noise)",
+        inputs=(Port("pose", "m, rad"), Port("floor_texture", "-")),
+        outputs=(Port("sensor_readings", "µs", "raw QTR-RC discharge time per sensor"),),
+        parameters=(
+            Parameter("count", "-", array.count, 2, 16, R, "reflectance sensors in the array (QTR-8: 8)", True, integer=True),
+            Parameter("pitch", "m", array.pitch, 0.002, 0.03, R, "sensor spacing (QTR-8: 9.525 mm)", True),
+            Parameter("aperture", "m", resp.aperture_m, 1e-4, 0.01, C, "footprint radius at zero height", True),
+            Parameter("half_angle", "rad", resp.half_angle_rad, 0.01, 1.2, C, "footprint growth with height", True),
+            Parameter("falloff_height", "m", resp.falloff_height_m, 5e-4, 0.05, C, "height at which returned light halves", True),
+            Parameter("t_unit", "µs", resp.t_unit_us, 1.0, 2000.0, C, "discharge time of a perfect reflector at 0 mm", True),
+            Parameter("timeout", "µs", resp.timeout_us, 100.0, 65535.0, C, "RC read timeout (Pololu default 2500 µs)", True),
+            Parameter("noise", "-", resp.noise_rel, 0.0, 0.5, C, "relative photocurrent noise (std)"),
+        ),
+        realised_by="MuJoCo rangefinders + twin/csrc/sim/sensor_physics.c (reference: line_sensor.reflectance)",
+    )
+
+
+def control_model() -> PartialModel:
+    d = CONTROL_DEFAULTS
+    return PartialModel(
+        "control",
+        "raw readings → e (Eqs. 8–9) → v, ω (Eqs. 10–11) → motor voltages, every Δt (firmware in C)",
+        inputs=(Port("sensor_readings", "µs"),),
+        outputs=(Port("motor_voltage", "V", "left, right: PWM duty × supply voltage"), Port("line_angle", "rad", "e")),
+        parameters=(
+            Parameter("v_max", "m/s", d["v_max"], 0.0, 3.0, C, "Eq. 10: top forward speed"),
+            Parameter("kb", "m/s/rad", d["k_b"], 0.0, 10.0, C, "Eq. 10: slow-down per unit |e|"),
+            Parameter("kp", "1/s", d["k_p"], 0.0, 200.0, C, "Eq. 11: proportional gain"),
+            Parameter("ki", "1/s²", d["k_i"], 0.0, 500.0, C, "Eq. 11: integral gain"),
+            Parameter("kd", "-", d["k_d"], 0.0, 10.0, C, "Eq. 11: derivative gain"),
+            Parameter("dt", "s", d["dt"], 1e-4, 0.05, C, "control period Δt (a whole number of physics steps)", True),
+            Parameter("accel_max", "m/s²", d["accel_max"], 0.01, 100.0, C, "forward-speed ramp limit", True),
+            Parameter("integral_limit", "rad·s", d["integral_limit"], 0.0, 10.0, C, "anti-windup bound on ∫e dt"),
+            Parameter("cal_duty", "-", d["cal_duty"], 0.01, 1.0, C, "PWM duty of the calibration turn", True),
+            Parameter("cal_sweep", "rad", d["cal_sweep"], 0.1, 3.0, C, "nominal calibration sweep each way", True),
+            Parameter("cal_sweeps", "-", d["cal_sweeps"], 1, 10, C, "calibration sweeps", True, integer=True),
+        ),
+        realised_by="twin/csrc/firmware (C, also built for the ATmega328P; reference: twin.controller)",
+    )
+
+
 INFLUENCES = (
     ("cad", "motion", "L, R, masses, inertias and d are parameters of Eqs. 4–5: the world is rebuilt"),
     ("environment", "motion", "the floor texture and its extent are part of the simulated world: rebuilt"),
     ("motor", "motion", "rotor inertia and gearbox losses add to the wheels' inertia and damping"),
+    ("cad", "sensor", "S and the sensor height place the rays; R and L set the firmware's wheel geometry"),
+    ("motor", "control", "no-load speed at the supply voltage maps wheel speed to PWM duty"),
 )
 
 
 def default_space() -> ModelSpace:
-    """The model space with the foundation's partial models at their default values."""
-    return ModelSpace([cad_model(), environment_model(), motion_model(), motor_model()], INFLUENCES)
+    """The model space with every partial model at its default values."""
+    return ModelSpace(
+        [cad_model(), environment_model(), motion_model(), motor_model(), sensor_model(), control_model()], INFLUENCES
+    )

@@ -1,0 +1,198 @@
+"""Laps in closed loop: many simulations of one world stepped by ``mujoco.batch``, controlled from C.
+
+Each simulation's userdata holds the firmware's parameters and state, the sensor model, its noise seed and
+a ring of trace records (:mod:`twin.core`). The C callback runs sensors and firmware at every control tick;
+Python only sets simulations up, moves them between phases and drains the trace rings every
+``CHUNK_TICKS`` ticks to judge the laps (:mod:`twin.lap`). Simulations run in parallel on a thread pool,
+and each one is bit-identical to running it alone: its state never mixes with another's.
+
+Phases of a lap, as on the real robot: calibrate by turning in place over the start line (Eq. 8's min and
+max), then be put back on the start line, and follow the line until the lap ends.
+"""
+
+from __future__ import annotations
+
+import copy
+import ctypes
+import logging
+from typing import Callable, Mapping, Sequence
+
+import mujoco
+import mujoco.batch
+import numpy as np
+
+from mjcf.world import AXLE_SITE, LINE_SENSOR, MOTORS, START_KEY
+from twin import core
+from twin.controller import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
+from twin.digital_twin import DigitalTwin, apply_fields
+from twin.errors import TwinError
+from twin.lap import CALIBRATION, DIVERGED, LapJudge, LapLimits, LapResult
+from twin.model_space import ChangeCost
+
+log = logging.getLogger(__name__)
+
+CHUNK_TICKS = 40  # control ticks per batch call; the ring (digital_twin.RECORD_CAPACITY) holds more
+SEED_SALT = 0x5DEECE66D  # mixes the user's seed into the C generator's state
+
+
+def _setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: ControlParams, sensor, seed: int) -> core.Sim:
+    """Write one simulation's userdata head: where to find things in the model, and what to run."""
+    row[:] = 0.0
+    sim = core.sim_view(row)
+    sim.magic, sim.layout_version, sim.nsensor = core.MAGIC, core.LAYOUT_VERSION, params.count
+    for i in range(params.count):
+        sim.sensor_adr[i] = model.sensor_adr[model.sensor(LINE_SENSOR.format(i)).id]
+    sim.texture_id = model.texture("track").id
+    sim.actuator_left, sim.actuator_right = (model.actuator(n).id for n in MOTORS)
+    sim.dof_left, sim.dof_right = (model.jnt_dofadr[model.joint(j).id] for j in twin.info.wheel_joints)
+    sim.axle_site = model.site(AXLE_SITE).id
+    sim.root_body = model.body(twin.info.root_body).id
+    sim.record_capacity = (model.nuserdata - core.SIM_WORDS) // core.RECORD_WORDS
+    sim.texture_origin_x, sim.texture_origin_y = twin.texture.origin_xy
+    sim.texture_metres_per_pixel = twin.texture.metres_per_pixel
+    sim.supply_voltage = float(model.actuator_ctrlrange[sim.actuator_left, 1])
+    sim.timestep = model.opt.timestep
+    sim.sensor = core.sensor_to_c(sensor)
+    sim.firmware = core.params_to_c(params)
+    sim.seed = (int(seed) * SEED_SALT + 1) & (2**64 - 1)
+    sim.rng = sim.seed
+    core.lib.lf_calibrate_reset(ctypes.byref(sim.fw), int(sensor.timeout_us))
+    _start_phase(sim, CALIBRATE)
+    return sim
+
+
+def _start_phase(sim: core.Sim, mode: int) -> None:
+    """Begin calibration or the lap at simulated time 0 (the calibration and the RNG state carry over)."""
+    core.lib.lf_reset(ctypes.byref(sim.fw), mode)
+    sim.ticks = sim.records_written = 0
+    sim.phase_start_time = sim.last_time = sim.energy_j = 0.0
+
+
+class Variant:
+    """One lap's parameters: the twin's values with some addresses changed (controller or model fields)."""
+
+    def __init__(self, twin: DigitalTwin, changes: Mapping[str, float]):
+        base = dict(twin.space.values)
+        try:
+            for address, value in changes.items():
+                if twin.set(address, value) is ChangeCost.REBUILD and twin.space.values[address] != base[address]:
+                    raise TwinError(
+                        f"{address}: rebuilds the robot or track, so it cannot vary between the laps of one batch"
+                    )
+            self.values = dict(twin.space.values)
+            self.params = twin.control_params()
+            self.sensor = twin.sensor_model()
+            self.motor, self.physics = twin.motor(), twin.physics()
+            self.field_key = tuple(
+                v for a, v in self.values.items() if twin.space.parameter(a).cost is ChangeCost.MODEL_FIELD
+            )
+        finally:
+            twin.space.values.update(base)
+            twin.model()  # puts the base values back into the shared model's fields
+
+
+def run_laps(
+    twin: DigitalTwin,
+    variants: Sequence[Mapping[str, float]] = ({},),
+    seed: int = 0,
+    limits: LapLimits = LapLimits(),
+    nthread: int = 0,
+    keep_traces: bool = True,
+    on_chunk: Callable[[float, int], None] | None = None,
+) -> list[LapResult]:
+    """Run one lap per variant, all at once, and return their results in order.
+
+    Args:
+      twin: the robot on its track; its current values are every lap's base.
+      variants: per lap, addresses to change from the base (``control.*``, ``sensor.*`` other than count and
+        pitch, ``motion.*``, ``motor.*``); the robot and track (``cad.*``, ``environment.*``) are shared.
+      seed: noise seed; every lap gets the same noise stream (common random numbers).
+      limits: failure thresholds.
+      nthread: threads of the batch, 0 for all cores. Results do not depend on it.
+      keep_traces: keep each lap's per-tick trace (memory: ~400 B per tick per lap).
+      on_chunk: called after each batch call with (simulated seconds of the slowest lap, laps still running).
+    """
+    if not variants:
+        return []
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise TwinError(f"seed: must be a whole number >= 0, got {seed!r}")
+    model = twin.model()
+    laps = [Variant(twin, v) for v in variants]
+    nsim = len(laps)
+    batch = mujoco.batch.Batch(model, nsim=nsim, nthread=nthread)
+    if len({lap.field_key for lap in laps}) > 1 or laps[0].field_key != Variant(twin, {}).field_key:
+        models: dict[tuple, mujoco.MjModel] = {}
+        for lap in laps:
+            if lap.field_key not in models:
+                m = copy.copy(model)
+                apply_fields(m, twin.info, lap.motor, lap.physics)
+                models[lap.field_key] = m
+        batch.set_models([models[lap.field_key] for lap in laps])
+    core.install_callback()
+    key = np.full(nsim, model.key(START_KEY).id)
+    judges = [LapJudge(twin.track, limits, keep_traces) for _ in laps]
+
+    # --- calibration: turn in place over the start line
+    batch.reset(keyframe=key, stage=mujoco.mjtStage.mjSTAGE_NONE)
+    userdata = batch.userdata  # (nsim, nuserdata), live view of the state rows
+    sims = [_setup(userdata[i], model, twin, lap.params, lap.sensor, seed) for i, lap in enumerate(laps)]
+    steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]
+    cal_steps = max((calibration_ticks(lap.params) + 2) * k for lap, k in zip(laps, steps))
+    failed = _step(batch, np.arange(nsim), cal_steps, judges)
+    saved = userdata.copy()
+    cal = [(list(s.fw.cal_min[: s.nsensor]), list(s.fw.cal_max[: s.nsensor])) for s in sims]
+
+    # --- the lap: back on the start line, calibration kept
+    batch.reset(keyframe=key, stage=mujoco.mjtStage.mjSTAGE_NONE)
+    userdata[:] = saved
+    for i, (sim, lap) in enumerate(zip(sims, laps)):
+        if sim.fw.mode != IDLE and i not in failed:
+            raise TwinError(f"lap {i}: calibration did not finish in {cal_steps} steps")
+        lo, hi = np.array(cal[i][0]), np.array(cal[i][1])
+        if np.min(hi - lo) < limits.min_calibration_range_us:
+            bad = int(np.argmin(hi - lo))
+            judges[i].fail(CALIBRATION, f"sensor {bad} spans only {hi[bad] - lo[bad]} µs after the calibration turn", 0.0, 0.0)
+        _start_phase(sim, RUN)
+    consumed = np.zeros(nsim, dtype=np.int64)
+    chunk = min(CHUNK_TICKS * k for k in steps)
+    capacity = sims[0].record_capacity
+    while True:
+        active = np.array([i for i, j in enumerate(judges) if not j.done])
+        if len(active) == 0:
+            break
+        _step(batch, active, chunk, judges)
+        rows, counts = [], []
+        for i in active:
+            written = sims[i].records_written
+            n = written - consumed[i]
+            if n > capacity:
+                raise TwinError(f"lap {i}: trace ring overflowed ({n} records for {capacity} slots)")
+            ring = core.records_view(userdata[i])
+            rows.append(ring[np.arange(consumed[i], written) % capacity])
+            counts.append(n)
+            consumed[i] = written
+        rec = np.concatenate(rows)
+        s, off = twin.track.locate(rec[:, 1:3]) if len(rec) else (np.zeros(0), np.zeros(0))
+        at = 0
+        for i, n in zip(active, counts):
+            judges[i].feed(rec[at : at + n], s[at : at + n], off[at : at + n])
+            at += n
+        if on_chunk is not None:
+            on_chunk(float(batch.time[active].max()), int(sum(not j.done for j in judges)))
+    return [j.result(lap.params.count, *cal[i], lap.values) for i, (j, lap) in enumerate(zip(judges, laps))]
+
+
+def _step(batch: mujoco.batch.Batch, ids: np.ndarray, nstep: int, judges: list[LapJudge]) -> set[int]:
+    """Step some simulations; those where MuJoCo raises or the state turns non-finite end as ``diverged``."""
+    failed: set[int] = set()
+    try:
+        batch.step(ids=ids, nstep=nstep)
+    except mujoco.batch.SimulationError as e:
+        for i in e.ids:
+            failed.add(int(i))
+            judges[int(i)].fail(DIVERGED, f"MuJoCo: {batch.error(int(i))}", float(batch.time[int(i)]), 0.0)
+    bad = ids[~np.isfinite(batch.qpos[ids]).all(axis=1)]
+    for i in bad:
+        failed.add(int(i))
+        judges[int(i)].fail(DIVERGED, "the physics produced a non-finite state", float(batch.time[int(i)]), 0.0)
+    return failed
