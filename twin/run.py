@@ -1,14 +1,19 @@
 """``python -m twin.run``: the twin's command line.
 
+  python -m twin.run lap   [--track NAME|PNG] [--robot URDF] [--gains FILE] [--set ADDRESS=VALUE] [--seed N]
+                           [--json] [--save run.rrd] [--view]        one closed-loop lap
+  python -m twin.run view  run.rrd                                   open a saved recording in rerun
   python -m twin.run build [--track NAME|PNG] [--robot URDF] [--set ADDRESS=VALUE] [-o world.xml] [--json]
-  python -m twin.run graph [--json] [--set ADDRESS=VALUE]   models, ports, parameters and relations
+  python -m twin.run graph [--json] [--set ADDRESS=VALUE]            models, ports, parameters and relations
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import tempfile
 
 from mjcf.cli import parse_assignments, run_guarded
 from mjcf.world import save_xml
@@ -17,10 +22,82 @@ from twin.errors import TwinError
 from twin.models import default_space
 
 
+def _twin(args: argparse.Namespace) -> DigitalTwin:
+    """The twin the command line describes: track, robot, gains file, then --set (which wins)."""
+    twin = DigitalTwin(track=args.track, robot_urdf=args.robot, track_metres_per_pixel=args.metres_per_pixel)
+    changes = {}
+    if getattr(args, "gains", None):
+        from twin.gains import load_gains
+
+        changes.update(load_gains(args.gains, twin.space))
+    changes.update(parse_assignments(args.set))
+    twin.update(changes)
+    return twin
+
+
+def cmd_lap(args: argparse.Namespace) -> int:
+    """Calibrate, then run one lap in closed loop (firmware in C) and report it."""
+    from twin.closed_loop import run_laps
+    from twin.lap import LapLimits
+    from twin import recording
+
+    if args.seed < 0:
+        raise TwinError(f"--seed: must be >= 0, got {args.seed}")
+    twin = _twin(args)
+    limits = LapLimits(timeout_s=args.timeout)
+    result = run_laps(twin, [{}], seed=args.seed, limits=limits, keep_traces=bool(args.save or args.view))[0]
+    saved = None
+    if args.save or args.view:
+        out = args.save or os.path.join(tempfile.mkdtemp(prefix="twin-lap-"), "lap.rrd")
+        saved = recording.save_laps(out, twin.track, twin.texture, [result], ["robot"])
+    summary = {
+        "lap_time_s": result.lap_time_s,
+        "completed": result.completed,
+        "failure": result.failure,
+        "detail": result.detail,
+        "max_cross_track_m": result.max_cross_track_m,
+        "mean_cross_track_m": result.mean_cross_track_m,
+        "energy_j": result.energy_j,
+        "distance_m": result.distance_m,
+        "simulated_s": result.simulated_s,
+        "track": twin.track.name,
+        "track_length_m": twin.track.length_m,
+        "seed": args.seed,
+        "calibration_min_us": list(result.calibration_min_us),
+        "calibration_max_us": list(result.calibration_max_us),
+        "parameters": result.parameters,
+        "recording": saved,
+    }
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        if result.completed:
+            print(f"lap completed in {result.lap_time_s:.3f} s on {twin.track.name} ({twin.track.length_m:.2f} m)")
+        else:
+            print(f"lap not completed: {result.failure} ({result.detail}) after {result.simulated_s:.2f} s, "
+                  f"{result.distance_m:.2f} of {twin.track.length_m:.2f} m")
+        print(f"cross-track error: max {result.max_cross_track_m * 1000:.1f} mm, mean {result.mean_cross_track_m * 1000:.1f} mm")
+        print(f"energy drawn by the motors: {result.energy_j:.2f} J")
+        p = result.parameters
+        print(f"gains: v_max={p['control.v_max']:g} m/s, K_B={p['control.kb']:g}, K_P={p['control.kp']:g}, "
+              f"K_I={p['control.ki']:g}, K_D={p['control.kd']:g}, Δt={p['control.dt'] * 1000:g} ms; seed {args.seed}")
+        if saved:
+            print(f"recording: {saved}")
+    if args.view:
+        recording.view([saved])
+    return 0
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    from twin import recording
+
+    recording.view(args.recordings)
+    return 0
+
+
 def cmd_build(args: argparse.Namespace) -> int:
     """Build the world through the model space: CAD → URDF → MJCF on the track, motors and friction set."""
-    twin = DigitalTwin(track=args.track, robot_urdf=args.robot, track_metres_per_pixel=args.metres_per_pixel)
-    twin.update(parse_assignments(args.set))
+    twin = _twin(args)
     model = twin.model()
     info, track = twin.info, twin.track
     summary = {
@@ -67,6 +144,24 @@ def cmd_graph(args: argparse.Namespace) -> int:
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m twin.run", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
+    lap = sub.add_parser("lap", help="calibrate and run one closed-loop lap; print lap time and a summary",
+                         description=cmd_lap.__doc__)
+    lap.add_argument("--track", default="default", help="built-in track name (default, oval, circle, chicane) or a PNG")
+    lap.add_argument("--metres-per-pixel", type=float, help="scale of a PNG track without DPI metadata [m]")
+    lap.add_argument("--robot", help="a diff-drive URDF instead of the generated robot")
+    lap.add_argument("--gains", metavar="FILE.json", help="control gains, e.g. written by python -m tuner --out")
+    lap.add_argument("--set", action="append", metavar="ADDRESS=VALUE",
+                     help="any model-space parameter (see 'graph'), repeatable; applied after --gains")
+    lap.add_argument("--seed", type=int, default=0, help="sensor-noise seed (same seed, bit-identical lap)")
+    lap.add_argument("--timeout", type=float, default=60.0, help="give up after this many simulated seconds")
+    lap.add_argument("--json", action="store_true", help="print one JSON object")
+    lap.add_argument("--save", metavar="RUN.rrd", help="write a rerun recording of the lap")
+    lap.add_argument("--view", action="store_true", help="open the lap in the rerun viewer")
+    lap.add_argument("-v", "--verbose", action="store_true")
+    lap.set_defaults(func=cmd_lap)
+    v = sub.add_parser("view", help="open saved rerun recordings (.rrd)")
+    v.add_argument("recordings", nargs="+", metavar="RUN.rrd")
+    v.set_defaults(func=cmd_view)
     b = sub.add_parser("build", help="build the world (robot, motors, track) from the model space")
     b.add_argument("--track", default="default", help="built-in track name or a PNG image")
     b.add_argument("--metres-per-pixel", type=float, help="scale of a PNG track without DPI metadata [m]")

@@ -1,0 +1,126 @@
+"""rerun recordings of laps: the track, the robot's path, sensor readings and control signals over time.
+
+Whole series go in with ``send_columns`` (one call per signal, not one per tick), and a blueprint lays the
+views out. Files are written to a temporary name and renamed when complete, so a crash leaves no half file.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Sequence
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from mjcf.track import FloorTexture, Track
+from twin.errors import TwinError
+from twin.lap import LapResult
+
+APP_ID = "line-follower-twin"
+TIMELINE = "sim_time"
+MAP_PIXEL_M = 0.004  # the floor image in the recording: 4 mm pixels keep a default-track file ~0.2 MB
+
+
+def lap_blueprint(count: int) -> rrb.Blueprint:
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(name="track", origin="/track"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(name="line angle e [rad]", origin="/control/e"),
+                rrb.TimeSeriesView(name="v [m/s], ω [rad/s]", contents=["/control/v", "/control/omega"]),
+                rrb.TimeSeriesView(name="motor voltage [V]", origin="/motors"),
+                rrb.TimeSeriesView(name=f"calibrated readings 0..1000 ({count} sensors)", origin="/sensors/calibrated"),
+                rrb.TimeSeriesView(name="cross-track error [m]", origin="/lap/cross_track"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+class _Map:
+    """World metres → pixels of the downsampled floor image logged under /track."""
+
+    def __init__(self, texture: FloorTexture):
+        self.step = max(1, int(round(MAP_PIXEL_M / texture.metres_per_pixel)))
+        self.texture = texture
+        self.image = texture.grey[:: self.step, :: self.step]
+
+    def px(self, xy: np.ndarray) -> np.ndarray:
+        row, col = self.texture.pixel_of(xy)
+        return np.stack([col, row], axis=-1) / self.step
+
+
+def _series(rec: rr.RecordingStream, path: str, t: np.ndarray, values: np.ndarray) -> None:
+    rr.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=rr.Scalars.columns(scalars=values),
+                    recording=rec)
+
+
+def log_lap(rec: rr.RecordingStream, track: Track, texture: FloorTexture, result: LapResult, name: str = "robot") -> None:
+    """Log one lap (it must carry its trace) under /track/<name> and the time series."""
+    tr = result.trace
+    if tr is None:
+        raise TwinError("recording: the lap has no trace (run it with keep_traces=True)")
+    m = _Map(texture)
+    t = tr.time_s
+    path = m.px(tr.records[:, 1:3])
+    rr.log(f"track/{name}/path", rr.LineStrips2D([path], radii=0.6, colors=[[230, 60, 40]]), static=True, recording=rec)
+    rr.send_columns(f"track/{name}/position", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+                    columns=rr.Points2D.columns(positions=path).partition(np.ones(len(t), dtype=int)), recording=rec)
+    for col, entity in (("e_rad", "control/e"), ("v_mps", "control/v"), ("omega_radps", "control/omega"),
+                        ("u_left_v", "motors/left"), ("u_right_v", "motors/right"), ("energy_j", "motors/energy_j")):
+        _series(rec, entity, t, tr.column(col))
+    _series(rec, "lap/cross_track", t, tr.cross_track_m)
+    _series(rec, "lap/progress", t, tr.progress_m)
+    for i in range(tr.count):
+        _series(rec, f"sensors/calibrated/{i}", t, tr.calibrated[:, i])
+        _series(rec, f"sensors/raw/{i}", t, tr.raw_us[:, i])
+
+
+def log_track(rec: rr.RecordingStream, track: Track, texture: FloorTexture) -> None:
+    m = _Map(texture)
+    rr.log("track/floor", rr.Image(m.image), static=True, recording=rec)
+    centre = m.px(np.vstack([track.centre, track.centre[:1]]))
+    rr.log("track/centre_line", rr.LineStrips2D([centre], radii=0.3, colors=[[40, 120, 230]]), static=True, recording=rec)
+    start = m.px(track.centre[:1])
+    rr.log("track/start", rr.Points2D(start, radii=3.0, colors=[[40, 200, 80]], labels=["start"]), static=True, recording=rec)
+
+
+def save_laps(out_path: str, track: Track, texture: FloorTexture, results: Sequence[LapResult], names: Sequence[str]) -> str:
+    """Write laps to an .rrd file atomically; returns its path."""
+    out_path = os.path.abspath(out_path)
+    tmp = f"{out_path}.{os.getpid()}.tmp"
+    rec = rr.RecordingStream(APP_ID)
+    try:
+        rec.save(tmp, default_blueprint=lap_blueprint(results[0].trace.count if results and results[0].trace else 8))
+        log_track(rec, track, texture)
+        for r, n in zip(results, names):
+            log_lap(rec, track, texture, r, n)
+        rec.flush()
+        rec.disconnect()
+        os.replace(tmp, out_path)
+    except OSError as e:
+        raise TwinError(f"{out_path}: cannot write the recording ({e.strerror or e})") from None
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return out_path
+
+
+def view(paths: Sequence[str] = ()) -> None:
+    """Open the rerun viewer on saved recordings (or an empty one to stream into)."""
+    import shutil
+    import subprocess
+    import sys
+
+    for p in paths:
+        if not os.path.isfile(p):
+            raise TwinError(f"{p}: no such recording")
+    exe = shutil.which("rerun") or os.path.join(os.path.dirname(sys.executable), "rerun")
+    if not os.path.exists(exe):
+        raise TwinError("rerun viewer: the 'rerun' command is not installed (pip install rerun-sdk)")
+    try:
+        subprocess.Popen([exe, *paths])
+    except OSError as e:
+        raise TwinError(f"rerun viewer: cannot start {exe} ({e.strerror or e})") from None
