@@ -1,0 +1,176 @@
+"""Closed loop (§3.5–3.6): default lap, failures as results, determinism, batch = serial, calibration, CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from mjcf.track import builtin
+from twin import core
+from twin.closed_loop import run_laps
+from twin.digital_twin import DigitalTwin
+from twin.lap import COL, LapJudge, LapLimits
+from twin.run import main
+
+
+@pytest.fixture(scope="module")
+def twin():
+    return DigitalTwin()
+
+
+@pytest.fixture(scope="module")
+def default_lap(twin):
+    return run_laps(twin, [{}], seed=0)[0]
+
+
+def test_default_gains_complete_the_default_lap(default_lap, twin):
+    r = default_lap
+    assert r.completed and r.failure is None
+    assert r.distance_m == pytest.approx(twin.track.length_m)
+    # 7.18 m at v_max = 0.6 m/s: no faster than v_max allows, and not much slower (it slows only in bends)
+    assert twin.track.length_m / 0.6 < r.lap_time_s < 1.25 * twin.track.length_m / 0.6
+    assert r.max_cross_track_m < 0.02  # the sensor bar is ±33 mm: the line stays well inside it
+    assert 0 < r.mean_cross_track_m < r.max_cross_track_m
+    # energy: the motors draw between their no-load and stall power for the lap's duration
+    assert 2 * 6.0 * 0.04 * 0.2 * r.lap_time_s < r.energy_j < 2 * 6.0 * 0.67 * r.lap_time_s
+
+
+def test_trace_is_consistent_with_eqs_10_and_11(default_lap, twin):
+    tr = default_lap.trace
+    p = twin.control_params()
+    v_target = np.maximum(0.0, p.v_max - p.k_b * np.abs(tr.column("e_rad")))
+    v = tr.column("v_mps")
+    # Eq. 10, raised no faster than the ramp: v_k = min(v_max − K_B|e_k|, v_k−1 + a·Δt)
+    ramp = np.concatenate([[p.accel_max * p.dt_s], v[:-1] + p.accel_max * p.dt_s])
+    assert np.allclose(v, np.minimum(v_target, ramp), rtol=0, atol=1e-12)
+    assert np.mean(v == v_target) > 0.9  # mostly Eq. 10 itself
+    e = tr.column("e_rad")
+    omega = p.k_p * e + p.k_d * np.diff(np.concatenate([[e[0]], e])) / p.dt_s  # K_I = 0 by default
+    assert np.allclose(tr.column("omega_radps"), omega, rtol=1e-9, atol=1e-9)
+    assert np.all(np.abs(tr.column("u_left_v")) <= 6.0) and np.all(np.abs(tr.column("u_right_v")) <= 6.0)
+    assert np.allclose(np.diff(tr.time_s), p.dt_s)  # one record per control tick
+
+
+def test_calibration_comes_from_the_in_place_turn(twin, default_lap):
+    r = default_lap
+    # every sensor crossed the line and the ground: min ≈ white board (≈ 200 µs), max ≈ tape (≈ 2400 µs)
+    assert all(150 < lo < 260 for lo in r.calibration_min_us)
+    assert all(hi > 2200 for hi in r.calibration_max_us)
+    # a turn too small to bring the outer sensors over the line leaves them uncalibrated: a failed lap
+    small = run_laps(twin, [{"control.cal_sweep": 0.15}], keep_traces=False)[0]
+    assert not small.completed and small.failure == "calibration"
+    assert small.calibration_max_us[0] - small.calibration_min_us[0] < 300
+
+
+def test_leaving_the_track_is_a_result(twin):
+    blind, lost = run_laps(twin, [{"control.kp": 0.0, "control.kd": 0.0}, {"control.kp": 0.0, "control.kd": 0.0}],
+                           keep_traces=False, limits=LapLimits(max_line_lost_s=1000.0))[0], None
+    assert not blind.completed and blind.failure == "off_track" and blind.lap_time_s is None
+    # it drove straight on from the start (0.3 m before the first bend) until 10 cm off the line
+    assert 0.3 < blind.distance_m < 1.0 and blind.max_cross_track_m > 0.1
+    lost = run_laps(twin, [{"control.kp": 0.0, "control.kd": 0.0}], keep_traces=False)[0]
+    assert lost.failure == "line_lost" and lost.simulated_s < blind.simulated_s
+
+
+def test_same_seed_is_bit_identical_and_seed_matters(twin, default_lap):
+    again = run_laps(twin, [{}], seed=0, nthread=1)[0]
+    assert np.array_equal(again.trace.records, default_lap.trace.records)
+    assert again.lap_time_s == default_lap.lap_time_s
+    other = run_laps(twin, [{}], seed=1)[0]
+    assert not np.array_equal(other.trace.raw_us[:100], default_lap.trace.raw_us[:100])
+
+
+def test_batched_laps_equal_laps_run_one_by_one(twin):
+    variants = [{"control.v_max": 0.8, "control.kp": 25.0}, {"motion.mu": 0.4}, {"control.kd": 0.5, "sensor.noise": 0.05}]
+    together = run_laps(twin, variants, seed=3, nthread=2)
+    for v, batched in zip(variants, together):
+        alone = run_laps(twin, [v], seed=3, nthread=1)[0]
+        assert np.array_equal(alone.trace.records, batched.trace.records), v
+        assert alone.summary() == batched.summary()
+    assert twin.space.get("motion.mu") == 0.9  # variants do not leak into the twin
+
+
+def test_sensor_count_is_a_model_parameter():
+    t = DigitalTwin()
+    t.update({"sensor.count": 6, "sensor.pitch": 0.012})
+    r = run_laps(t, [{}], keep_traces=True)[0]
+    assert r.completed and len(r.calibration_min_us) == 6 and r.trace.raw_us.shape[1] == 6
+
+
+# --- the lap judge on a synthetic run: exact answers
+def synthetic(track, speed, t):
+    rec = np.zeros((len(t), core.RECORD_WORDS))
+    rec[:, COL["time_s"]] = t
+    rec[:, 1:3] = track.point_at(speed * t)
+    rec[:, COL["line_seen"]] = 1
+    rec[:, COL["energy_j"]] = 2.0 * t  # 2 W
+    return rec
+
+
+def test_judge_interpolates_the_crossing():
+    track = builtin("circle")
+    t = np.arange(0, 4.0, 0.005)
+    rec = synthetic(track, 1.0, t)
+    judge = LapJudge(track, LapLimits())
+    for k in range(0, len(t), 37):  # uneven chunks
+        s, off = track.locate(rec[k : k + 37, 1:3])
+        judge.feed(rec[k : k + 37], s, off)
+    r = judge.result(8, [0] * 8, [0] * 8, {})
+    assert r.completed
+    assert r.lap_time_s == pytest.approx(track.length_m, abs=1e-6)  # 1 m/s around a 2π·0.5 m circle
+    assert r.energy_j == pytest.approx(2.0 * track.length_m, abs=1e-5)
+    assert r.max_cross_track_m < 1e-6
+
+
+def test_judge_times_a_lost_line():
+    track = builtin("oval")
+    t = np.arange(0, 3.0, 0.005)
+    rec = synthetic(track, 0.5, t)
+    rec[t >= 1.0, COL["line_seen"]] = 0
+    judge = LapJudge(track, LapLimits(max_line_lost_s=0.5))
+    s, off = track.locate(rec[:, 1:3])
+    judge.feed(rec, s, off)
+    r = judge.result(8, [0] * 8, [0] * 8, {})
+    assert r.failure == "line_lost"
+    assert 0.5 - 1e-9 <= r.simulated_s - 0.995 <= 0.505 + 1e-9  # last seen at 0.995 s; judged to the tick
+
+
+# --- command line
+def test_cli_lap_json_gains_and_recording(tmp_path, capsys):
+    gains = tmp_path / "gains.json"
+    gains.write_text(json.dumps({"gains": {"control.v_max": 0.7, "kp": 18}}))
+    rrd = tmp_path / "run.rrd"
+    assert main(["lap", "--gains", str(gains), "--set", "control.kd=0.35", "--json", "--save", str(rrd)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("lap_time_s", "completed", "failure", "max_cross_track_m", "mean_cross_track_m", "energy_j", "parameters"):
+        assert key in out
+    assert out["completed"] and out["parameters"]["control.v_max"] == 0.7 and out["parameters"]["control.kp"] == 18
+    assert out["parameters"]["control.kd"] == 0.35
+    data = rrd.read_bytes()
+    assert len(data) > 10_000 and b"sensors/calibrated/7" in data and b"track/robot/path" in data
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--track", "nowhere"], "unknown track"),
+    (["--set", "control.kp=nan"], "control.kp: must be finite"),
+    (["--set", "control.kp=-3"], "outside"),
+    (["--set", "control.gain=3"], "unknown parameter address"),
+])
+def test_cli_bad_input_is_one_line_and_exit_2(args, needle, capsys):
+    assert main(["lap", *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and needle in err[0]
+
+
+def test_cli_unreadable_track_image_in_a_fresh_process(tmp_path):
+    bad = tmp_path / "track.png"
+    bad.write_bytes(b"not a png")
+    p = subprocess.run([sys.executable, "-m", "twin.run", "lap", "--track", str(bad)], capture_output=True, text=True)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.strip().startswith(f"error: {bad}")
