@@ -36,8 +36,7 @@ FLOOR = "floor"
 MOTORS = ("left_motor", "right_motor")
 AXLE_SITE = "axle_centre"
 SENSOR_SITE = "sensor_array"
-LINE_SENSOR = "line_sensor_{}"  # site and rangefinder of reflectance sensor i (0 = leftmost)
-RANGEFINDER_DATA = (1 << int(mujoco.mjtRayDataField.mjRAYDATA_DIST)) | (1 << int(mujoco.mjtRayDataField.mjRAYDATA_POINT))
+LINE_SENSOR = "line_sensor_{}"  # site of reflectance sensor i (0 = leftmost); its z axis points at the floor
 TYRE_SOLREF = (0.005, 1.0)  # [s, -] contact time constant and damping ratio; needs timestep <= 2.5 ms
 START_KEY = "start"
 
@@ -95,8 +94,9 @@ def build_world(
       motor: constants of both drive motors.
       physics: timestep, friction and supply voltage.
       config: names of wheels, caster and sensor mount in the URDF.
-      sensors: the reflectance array: one downward rangefinder (distance and hit point) per sensor, on
-        a site across the sensor mount's y axis.
+      sensors: the reflectance array: one site per sensor across the sensor mount's y axis, its z axis
+        pointing at the floor. The controller casts its ray (``mj_ray``) when it reads the sensor, at its own
+        period, rather than a rangefinder sensor on every physics step.
     """
     spec = mujoco.MjSpec()
     spec.modelname = "line_follower_world"
@@ -134,9 +134,6 @@ def build_world(
         # a site's z axis is its ray: turned half a turn about x, it points at the floor
         mount.add_site(name=LINE_SENSOR.format(i), pos=[0.0, float(y), 0.0], quat=[0.0, 1.0, 0.0, 0.0],
                        size=[0.001, 0, 0], group=4)
-        ray = spec.add_sensor(name=LINE_SENSOR.format(i), type=mujoco.mjtSensor.mjSENS_RANGEFINDER,
-                              objtype=mujoco.mjtObj.mjOBJ_SITE, objname=LINE_SENSOR.format(i))
-        ray.intprm[0] = RANGEFINDER_DATA
     for g in info.tyre_geoms:
         geom = spec.geom(g)
         geom.priority = 1  # this geom's friction governs its contacts

@@ -109,6 +109,9 @@ def synthetic(track, speed, t):
     rec[:, 1:3] = track.point_at(speed * t)
     rec[:, COL["line_seen"]] = 1
     rec[:, COL["energy_j"]] = 2.0 * t  # 2 W
+    rec[:, COL["progress_m"]], rec[:, COL["offset_m"]] = track.locate(rec[:, 1:3])
+    rec[:, COL["offset_abs_sum_m"]] = np.cumsum(np.abs(rec[:, COL["offset_m"]]))
+    rec[:, COL["offset_abs_max_m"]] = np.maximum.accumulate(np.abs(rec[:, COL["offset_m"]]))
     return rec
 
 
@@ -118,8 +121,7 @@ def test_judge_interpolates_the_crossing():
     rec = synthetic(track, 1.0, t)
     judge = LapJudge(track, LapLimits())
     for k in range(0, len(t), 37):  # uneven chunks
-        s, off = track.locate(rec[k : k + 37, 1:3])
-        judge.feed(rec[k : k + 37], s, off)
+        judge.feed(rec[k : k + 37])
     r = judge.result(8, [0] * 8, [0] * 8, {})
     assert r.completed
     assert r.lap_time_s == pytest.approx(track.length_m, abs=1e-6)  # 1 m/s around a 2π·0.5 m circle
@@ -133,8 +135,7 @@ def test_judge_times_a_lost_line():
     rec = synthetic(track, 0.5, t)
     rec[t >= 1.0, COL["line_seen"]] = 0
     judge = LapJudge(track, LapLimits(max_line_lost_s=0.5))
-    s, off = track.locate(rec[:, 1:3])
-    judge.feed(rec, s, off)
+    judge.feed(rec)
     r = judge.result(8, [0] * 8, [0] * 8, {})
     assert r.failure == "line_lost"
     assert 0.5 - 1e-9 <= r.simulated_s - 0.995 <= 0.505 + 1e-9  # last seen at 0.995 s; judged to the tick
@@ -174,3 +175,28 @@ def test_cli_unreadable_track_image_in_a_fresh_process(tmp_path):
     p = subprocess.run([sys.executable, "-m", "twin.run", "lap", "--track", str(bad)], capture_output=True, text=True)
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert p.stderr.strip().startswith(f"error: {bad}")
+
+
+def test_c_lap_progress_equals_track_locate():
+    """lf_locate (the C loop's incremental search) against Track.locate (k-d tree) along a wandering path."""
+    import ctypes
+
+    from twin.digital_twin import centre_line_data
+
+    track = builtin("default")
+    data = np.ascontiguousarray(centre_line_data(track))
+    ptr = data.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+    seg = ctypes.c_int64(-1)
+    s_c, off_c = ctypes.c_double(), ctypes.c_double()
+    rng = np.random.default_rng(0)
+    s = np.arange(0.0, 2 * track.length_m, 0.004)  # two laps, 4 mm per tick
+    lateral = 0.04 * np.sin(s / 0.3) + rng.normal(0, 0.002, len(s))
+    p = track.point_at(s)
+    q = track.point_at(s + 0.001)
+    n = (q - p) / np.linalg.norm(q - p, axis=1)[:, None]
+    xy = p + lateral[:, None] * np.stack([-n[:, 1], n[:, 0]], axis=1)
+    ref_s, ref_off = track.locate(xy)
+    for k, (x, y) in enumerate(xy):
+        core.lib.lf_locate(ptr, len(track.centre), track.length_m, x, y, ctypes.byref(seg), ctypes.byref(s_c), ctypes.byref(off_c))
+        ds = (s_c.value - ref_s[k] + track.length_m / 2) % track.length_m - track.length_m / 2
+        assert abs(ds) < 1e-9 and abs(off_c.value - ref_off[k]) < 1e-12, k

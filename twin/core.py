@@ -19,7 +19,7 @@ from twin.errors import TwinError
 
 MAX_SENSORS = 16
 MAGIC = 1279676025.0
-LAYOUT_VERSION = 1
+LAYOUT_VERSION = 4
 
 
 class Params(ctypes.Structure):
@@ -61,6 +61,7 @@ class Texture(ctypes.Structure):
 RECORD_FIELDS = (
     "time_s", "x_m", "y_m", "yaw_rad", "e_rad", "v_mps", "omega_radps", "u_left_v", "u_right_v",
     "wheel_left_radps", "wheel_right_radps", "position", "line_seen", "mode", "energy_j", "height_m",
+    "progress_m", "offset_m", "offset_abs_sum_m", "offset_abs_max_m",
 )
 RECORD_WORDS = len(RECORD_FIELDS) + 2 * MAX_SENSORS  # then raw_us[16], calibrated[16]
 RAW_COLUMN = len(RECORD_FIELDS)
@@ -72,14 +73,16 @@ class Sim(ctypes.Structure):
 
     _fields_ = [
         ("magic", c_double), ("layout_version", c_int32), ("nsensor", c_int32),
-        ("sensor_adr", c_int32 * MAX_SENSORS), ("texture_id", c_int32),
+        ("sensor_site", c_int32 * MAX_SENSORS), ("sensor_body", c_int32), ("texture_id", c_int32),
         ("actuator_left", c_int32), ("actuator_right", c_int32), ("dof_left", c_int32), ("dof_right", c_int32),
         ("axle_site", c_int32), ("root_body", c_int32), ("record_capacity", c_int32),
+        ("centre_adr", c_int32), ("centre_count", c_int32),
         ("texture_origin_x", c_double), ("texture_origin_y", c_double), ("texture_metres_per_pixel", c_double),
         ("supply_voltage", c_double), ("timestep", c_double),
         ("sensor", SensorModelC), ("firmware", Params), ("seed", c_uint64),
-        ("rng", c_uint64), ("ticks", c_int64), ("records_written", c_int64),
+        ("rng", c_uint64), ("ticks", c_int64), ("records_written", c_int64), ("segment", c_int64),
         ("phase_start_time", c_double), ("last_time", c_double), ("energy_j", c_double),
+        ("offset_abs_sum_m", c_double), ("offset_abs_max_m", c_double),
         ("fw", FwState), ("raw", c_uint16 * MAX_SENSORS),
     ]
 
@@ -129,6 +132,7 @@ def _load() -> ctypes.CDLL:
     lib.lf_footprint_reflectance.restype = c_double
     lib.lf_raw_reading.argtypes = [P(SensorModelC), c_double, c_double, c_double]
     lib.lf_raw_reading.restype = c_uint16
+    lib.lf_locate.argtypes = [P(c_double), c_int32, c_double, c_double, c_double, P(c_int64), P(c_double), P(c_double)]
     lib.lf_rng_next.argtypes = [P(c_uint64)]
     lib.lf_rng_next.restype = c_uint64
     lib.lf_noise.argtypes = [P(c_uint64)]
@@ -136,8 +140,18 @@ def _load() -> ctypes.CDLL:
     return lib
 
 
+def _mj_ray_address() -> int:
+    """Address of mj_ray in the libmujoco that the mujoco module loaded (dlopen returns the same handle)."""
+    here = os.path.dirname(mujoco.__file__)
+    found = sorted(glob.glob(os.path.join(here, "libmujoco.so*")) + glob.glob(os.path.join(here, "libmujoco*.dylib")))
+    if not found:
+        raise ImportError(f"twin: no libmujoco shared library beside {mujoco.__file__}")
+    return ctypes.cast(ctypes.CDLL(found[0]).mj_ray, ctypes.c_void_p).value
+
+
 lib = _load()
-CONTROL_CALLBACK = ctypes.cast(lib.lf_control_callback, ctypes.c_void_p)
+lib.lf_set_ray.argtypes = [ctypes.c_void_p]
+lib.lf_set_ray(_mj_ray_address())
 
 
 def install_callback() -> None:

@@ -201,6 +201,7 @@ class DigitalTwin:
                 self.robot_config, self.sensor_array(),
             )
             spec.nuserdata = core.SIM_WORDS + RECORD_CAPACITY * core.RECORD_WORDS  # the C loop's state and trace
+            spec.add_numeric(name=CENTRE_LINE, data=centre_line_data(self.track))  # the C loop's lap progress
             self._model = compile_world(spec, urdf)
             self.sensor_distance = _sensor_distance(self._model, self.track.start_pose().yaw)
             self._spec, self.info, self._built_key = spec, info, key
@@ -210,7 +211,15 @@ class DigitalTwin:
         return self._model
 
 
-RECORD_CAPACITY = 64  # trace ring per simulation, in control ticks; the runner drains it more often
+CENTRE_LINE = "track_centre"
+
+
+def centre_line_data(track: Track) -> np.ndarray:
+    """The centre line for the C loop: x, y, arc length of each vertex [m], then the track length."""
+    return np.concatenate([np.column_stack([track.centre, track.arc_length[:-1]]).ravel(), [track.length_m]])
+
+
+RECORD_CAPACITY = 256  # trace ring per simulation, in control ticks; the runner drains it every chunk (200 ticks)
 
 
 def _sensor_distance(model: mujoco.MjModel, yaw: float) -> float:

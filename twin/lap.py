@@ -1,7 +1,7 @@
 """Judging a lap from the closed loop's trace: progress along the centre line, completion, failures.
 
 The robot starts on the start line at progress 0. Progress is the arc length of the centre-line point
-nearest the centre of rotation, unwrapped tick by tick; the lap completes when it reaches the track length
+nearest the centre of rotation (computed by the C loop at every tick, ``lf_locate``), unwrapped tick by tick; the lap completes when it reaches the track length
 (the crossing time is interpolated linearly between the two control ticks around it). A lap fails when
 
 * ``off_track``: the centre of rotation is more than ``max_cross_track_m`` from the line, or its progress
@@ -119,10 +119,11 @@ class LapJudge:
     def done(self) -> bool:
         return self.outcome is not None
 
-    def feed(self, rec: np.ndarray, s: np.ndarray, offset: np.ndarray) -> None:
-        """Take the next ticks: records (k, RECORD_WORDS), their progress in [0, length) and signed offsets."""
+    def feed(self, rec: np.ndarray) -> None:
+        """Take the next ticks: records (k, RECORD_WORDS) with the C loop's progress and offset columns."""
         if self.done or len(rec) == 0:
             return
+        s, offset = rec[:, COL["progress_m"]], rec[:, COL["offset_m"]]
         length = self.track.length_m
         t = rec[:, COL["time_s"]]
         if self.u_last is None:  # the first tick: the start line, wherever 0 wraps
@@ -169,10 +170,10 @@ class LapJudge:
     def _account(self, rec: np.ndarray, u: np.ndarray, offset: np.ndarray) -> None:
         if len(rec) == 0:
             return
-        a = np.abs(offset[np.isfinite(offset)])
-        self.n += len(a)
-        self.abs_sum += float(a.sum())
-        self.abs_max = max(self.abs_max, float(a.max(initial=0.0)))
+        # running sums from the C loop, so the statistics do not depend on how the trace was chunked
+        self.n += len(rec)
+        self.abs_sum = float(rec[-1, COL["offset_abs_sum_m"]])
+        self.abs_max = float(rec[-1, COL["offset_abs_max_m"]])
         if self.keep_trace:
             self.chunks.append((rec.copy(), u.copy(), offset.copy()))
 

@@ -1,5 +1,8 @@
 /* The twin's closed loop in C: per-simulation layout of mjData.userdata and the control callback.
  *
+ * Rays are cast with MuJoCo's mj_ray, called through a pointer that Python hands over once (lf_set_ray) from
+ * the libmujoco the mujoco module has loaded: the library needs no link-time dependency on a versioned .so.
+ *
  * userdata = [lf_sim | lf_record x record_capacity], all 8-byte aligned. Python (twin.core) mirrors these
  * structs with ctypes and checks their sizes against lf_sizes() when the library loads.
  */
@@ -12,8 +15,8 @@
 #include "sensor_physics.h"
 
 #define LF_MAGIC 1279676025.0  /* "LFTy": marks userdata the callback owns; other models are left alone */
-#define LF_LAYOUT_VERSION 1
-#define LF_RECORD_FIXED 16
+#define LF_LAYOUT_VERSION 4
+#define LF_RECORD_FIXED 20
 
 /* One line of the trace, written at every control tick. */
 typedef struct {
@@ -28,6 +31,10 @@ typedef struct {
   double mode;              /* enum lf_mode before the tick */
   double energy_j;          /* electrical energy drawn by both motors so far [J] */
   double height_m;          /* sensor 0 height above the floor [m] */
+  double progress_m;        /* arc length of the nearest centre-line point, in [0, track length) */
+  double offset_m;          /* signed distance of the centre of rotation from the centre line, + left */
+  double offset_abs_sum_m;  /* sum of |offset| over the phase's ticks so far (mean = sum / ticks) */
+  double offset_abs_max_m;  /* largest |offset| in the phase so far */
   double raw_us[LF_MAX_SENSORS];       /* raw RC readings */
   double calibrated[LF_MAX_SENSORS];   /* Eq. 8 values 0..1000 */
 } lf_record;
@@ -37,13 +44,16 @@ typedef struct {
   double magic;
   int32_t layout_version;
   int32_t nsensor;
-  int32_t sensor_adr[LF_MAX_SENSORS]; /* sensordata address of each rangefinder: dist, point xyz */
+  int32_t sensor_site[LF_MAX_SENSORS]; /* site of each sensor; its z axis is the ray */
+  int32_t sensor_body;           /* the sensor mount: its own geoms never block a ray */
   int32_t texture_id;
   int32_t actuator_left, actuator_right;
   int32_t dof_left, dof_right;   /* wheel joint dof addresses (encoders) */
   int32_t axle_site;             /* site at the centre of rotation */
   int32_t root_body;             /* the robot's free body (heading) */
   int32_t record_capacity;
+  int32_t centre_adr;            /* numeric_data address of the centre line: x, y, arc length per vertex */
+  int32_t centre_count;          /* vertices of the closed centre line */
   double texture_origin_x, texture_origin_y, texture_metres_per_pixel;
   double supply_voltage;         /* PWM duty 1 -> this voltage [V] */
   double timestep;               /* physics step [s], for the control-tick comparison */
@@ -54,11 +64,18 @@ typedef struct {
   uint64_t rng;
   int64_t ticks;                 /* control ticks since the phase started */
   int64_t records_written;       /* total; record k lives in slot k % record_capacity */
+  int64_t segment;               /* centre-line segment nearest the robot at the last tick, -1: search all */
   double phase_start_time;       /* time of the phase's first tick [s] */
   double last_time;              /* time of the last callback, for the energy integral [s] */
   double energy_j;               /* electrical energy drawn by both motors [J] */
+  double offset_abs_sum_m, offset_abs_max_m; /* running cross-track statistics of the phase [m] */
   lf_state fw;
   uint16_t raw[LF_MAX_SENSORS];
 } lf_sim;
+
+/* Nearest point of a closed polyline (x, y, arc length per vertex) to (x, y), searched from segment *seg
+ * (or over all segments if *seg < 0) by walking to neighbours while they are nearer. */
+void lf_locate(const double *centre, int32_t n, double length, double x, double y, int64_t *seg, double *progress,
+               double *offset);
 
 #endif

@@ -1,0 +1,150 @@
+"""Closed-loop throughput: the C firmware in MuJoCo's control callback against its ceiling and against Python.
+
+Measured in one run on the default robot and track (shared machines are noisy; compare the ratios):
+  * closed loop: ``twin.closed_loop.run_laps`` (calibration + one lap, C callback, trace drained per chunk)
+  * ceiling:     the same voltages replayed open-loop by ``mujoco.batch`` rollouts, no callback: the same
+                 physics step by step (the replayed path is checked against the closed loop's), nothing else
+  * Python loop: the same model stepped with ``mujoco.mj_step`` from Python, with the sensors (``mj_ray``,
+                 footprint, response: line_sensor.reflectance) and the firmware (Eqs. 8–11: twin.controller)
+                 in Python every Δt — the references the C is tested against
+All on one thread. Targets: closed loop ≥ 90 % of the ceiling and ≥ 20× the Python loop.
+
+  python benchmarks/bench_closed_loop.py [--python-seconds 2] [--repeat 3] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import mujoco
+import mujoco.batch
+import numpy as np
+
+from line_sensor.reflectance import NoiseSource, footprint_reflectance
+from mjcf.world import LINE_SENSOR, MOTORS, START_KEY
+from twin.lap import COL
+from twin import controller as ref
+from twin.closed_loop import run_laps
+from twin.digital_twin import DigitalTwin
+
+
+def closed_loop(twin: DigitalTwin) -> tuple[float, object]:
+    """(wall s, lap result) of calibration + one lap on one thread."""
+    t0 = time.perf_counter()
+    r = run_laps(twin, [{}], nthread=1, keep_traces=True)[0]
+    return time.perf_counter() - t0, r
+
+
+def voltages(twin: DigitalTwin, lap) -> tuple[np.ndarray, np.ndarray]:
+    """The motor voltages the closed loop applied at every physics step: calibration turn, then the lap."""
+    p, model = twin.control_params(), twin.model()
+    k = round(p.dt_s / model.opt.timestep)
+    supply = twin.space.get("motor.supply_voltage")
+    n_cal = ref.calibration_ticks(p) + 2
+    turn = np.array([ref.calibration_direction(p, t) * p.cal_duty * supply for t in range(n_cal)])
+    cal = np.repeat(np.stack([-turn, turn], axis=1), k, axis=0)
+    run = np.repeat(lap.trace.records[:, [COL["u_left_v"], COL["u_right_v"]]], k, axis=0)
+    return cal, run
+
+
+def ceiling(model: mujoco.MjModel, phases: list[np.ndarray]) -> tuple[float, np.ndarray]:
+    """Replay the same voltages open-loop (no callback): the same physics, nothing else. (wall s, last qpos)."""
+    mujoco.set_mjcb_control(None)
+    batch = mujoco.batch.Batch(model, nsim=1, nthread=1)
+    key = np.array([model.key(START_KEY).id])
+    wall = 0.0
+    for u in phases:
+        batch.reset(keyframe=key)
+        t0 = time.perf_counter()
+        out = batch.rollout(len(u), control=u[None], record=("qpos",))
+        wall += time.perf_counter() - t0
+    return wall, out["qpos"][0]
+
+
+def python_loop(twin: DigitalTwin, seconds: float) -> tuple[float, int]:
+    """The same loop with sensors and firmware in Python (no calibration turn: calibrated to white/black)."""
+    mujoco.set_mjcb_control(None)
+    model, p, sensor, tex = twin.model(), twin.control_params(), twin.sensor_model(), twin.texture
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
+    sites = [model.site(LINE_SENSOR.format(i)).id for i in range(p.count)]
+    mount = model.body(twin.info.sensor_body).id
+    groups = np.array([1, 1, 0, 0, 0, 0], dtype=np.uint8)  # as the C glue: the world, not the robot
+    geom = np.zeros(1, dtype=np.int32)
+    act = [model.actuator(n).id for n in MOTORS]
+    fw = ref.FirmwareState.uncalibrated(p.count, int(sensor.timeout_us))
+    fw.cal_min, fw.cal_max = [200] * p.count, [2400] * p.count
+    fw.reset(ref.RUN)
+    noise = NoiseSource(1)
+    every = round(p.dt_s / model.opt.timestep)
+    nstep = int(round(seconds / model.opt.timestep))
+    supply = twin.space.get("motor.supply_voltage")
+    t0 = time.perf_counter()
+    for k in range(nstep):
+        if k % every == 0:
+            mujoco.mj_kinematics(model, data)  # site poses at the current state, as the C callback sees them
+            raw = []
+            for site in sites:
+                origin, ray = data.site_xpos[site], data.site_xmat[site].reshape(3, 3)[:, 2].copy()
+                h = mujoco.mj_ray(model, data, origin, ray, groups, 1, mount, geom)
+                x, y = origin[0] + h * ray[0], origin[1] + h * ray[1]
+                rho = footprint_reflectance(tex.grey, tex.origin_xy, tex.metres_per_pixel, x, y, sensor.footprint_radius(h))
+                raw.append(sensor.raw_reading(rho, h, noise.noise()))
+            ref.firmware_step(fw, p, raw)
+            data.ctrl[act[0]], data.ctrl[act[1]] = fw.duty_left * supply, fw.duty_right * supply
+        mujoco.mj_step(model, data)
+    return time.perf_counter() - t0, nstep
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--python-seconds", type=float, default=2.0, help="simulated seconds of the Python loop")
+    ap.add_argument("--repeat", type=int, default=7, help="best of this many interleaved runs of each")
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    args = ap.parse_args()
+    twin = DigitalTwin()
+    model = twin.model()
+    _, lap = closed_loop(twin)  # warm-up: builds, caches, loads the library
+    cal, run = voltages(twin, lap)
+    nstep, sim_s = len(cal) + len(run), (len(cal) + len(run)) * model.opt.timestep
+    walls, ceils = [], []
+    for _ in range(args.repeat):  # interleaved, so both see the same machine; best of each
+        walls.append(closed_loop(twin)[0])
+        ceils.append(ceiling(model, [cal, run]))
+    wall = min(walls)
+    ceil, qpos = min(ceils, key=lambda x: x[0])
+    k = round(twin.space.get("control.dt") / model.opt.timestep)
+    # the replay is the same trajectory: its path at each tick against the closed loop's
+    deviation = float(np.max(np.hypot(*(qpos[k - 1 :: k, :2][: len(lap.trace.records) - 1]
+                                         - lap.trace.records[1:, 1:3]).T)))
+    py_wall, py_steps = min(python_loop(twin, args.python_seconds) for _ in range(max(1, args.repeat - 1)))
+    out = {
+        "timestep_s": model.opt.timestep,
+        "control_period_s": twin.space.get("control.dt"),
+        "steps": nstep,
+        "simulated_s": sim_s,
+        "closed_loop_steps_per_s": nstep / wall,
+        "closed_loop_realtime_factor": sim_s / wall,
+        "ceiling_steps_per_s": nstep / ceil,
+        "python_loop_steps_per_s": py_steps / py_wall,
+        "ratio_closed_loop_over_ceiling": (nstep / wall) / (nstep / ceil),
+        "ratio_closed_loop_over_python": (nstep / wall) / (py_steps / py_wall),
+        "replay_max_deviation_m": deviation,
+    }
+    if args.json:
+        print(json.dumps(out))
+        return
+    print(f"default robot, default track: {nstep} steps of {model.opt.timestep * 1e3:g} ms "
+          f"(calibration + lap, {sim_s:.2f} s simulated), control every {out['control_period_s'] * 1e3:g} ms, 1 thread")
+    print(f"  closed loop (C)    : {out['closed_loop_steps_per_s']:10.0f} steps/s  ({out['closed_loop_realtime_factor']:.0f}× real time)")
+    print(f"  ceiling (mj_step)  : {out['ceiling_steps_per_s']:10.0f} steps/s  (same voltages replayed open-loop; "
+          f"path within {deviation * 1e6:.1g} µm of the closed loop's)")
+    print(f"  Python loop        : {out['python_loop_steps_per_s']:10.0f} steps/s")
+    print(f"  closed / ceiling   : {out['ratio_closed_loop_over_ceiling'] * 100:.1f} %   (target ≥ 90 %)")
+    print(f"  closed / Python    : {out['ratio_closed_loop_over_python']:.1f}×   (target ≥ 20×)")
+
+
+if __name__ == "__main__":
+    main()
