@@ -82,7 +82,7 @@ def footprint_reflectance(
     h, w = grey.shape[:2]
     ox, oy = origin_xy
     mpp = metres_per_pixel
-    r2 = radius_m * radius_m
+    inv_r2 = 1.0 / (radius_m * radius_m)
     c0 = max(0, math.floor((x - radius_m - ox) / mpp))
     c1 = min(w - 1, math.floor((x + radius_m - ox) / mpp))
     r0 = max(0, math.floor(h - (y + radius_m - oy) / mpp))
@@ -92,7 +92,7 @@ def footprint_reflectance(
         dy = oy + (h - r - 0.5) * mpp - y
         for c in range(c0, c1 + 1):
             dx = ox + (c + 0.5) * mpp - x
-            q = (dx * dx + dy * dy) / r2
+            q = (dx * dx + dy * dy) * inv_r2
             if q < 1.0:
                 wt = (1.0 - q) * (1.0 - q)
                 total += wt * float(grey[r, c])

@@ -31,7 +31,7 @@ from twin.model_space import ChangeCost
 
 log = logging.getLogger(__name__)
 
-CHUNK_TICKS = 200  # control ticks per batch call at most (1 s at 5 ms): Python runs once per chunk, not per step
+CHUNK_TICKS = 400  # control ticks per batch call at most (2 s at 5 ms): Python runs once per chunk, not per step
 MIN_CHUNK_TICKS = 10  # near the finish, chunks shrink to what could still finish the lap, but not below this
 SEED_SALT = 0x5DEECE66D  # mixes the user's seed into the C generator's state
 

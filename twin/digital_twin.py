@@ -219,7 +219,7 @@ def centre_line_data(track: Track) -> np.ndarray:
     return np.concatenate([np.column_stack([track.centre, track.arc_length[:-1]]).ravel(), [track.length_m]])
 
 
-RECORD_CAPACITY = 256  # trace ring per simulation, in control ticks; the runner drains it every chunk (200 ticks)
+RECORD_CAPACITY = 448  # trace ring per simulation, in control ticks; the runner drains it every chunk (≤ 400 ticks)
 
 
 def _sensor_distance(model: mujoco.MjModel, yaw: float) -> float:

@@ -66,51 +66,53 @@ static void read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *h
   }
 }
 
-/* Distance from (x, y) to segment i (vertex i to i+1, closing the loop); t: where along it [0, 1]. */
-static double segment_distance(const double *c, int32_t n, int64_t i, double x, double y, double *t) {
+/* Squared distance from (x, y) to segment i (vertex i to i+1, closing the loop); t: where along it [0, 1]. */
+static double segment_distance2(const double *c, int32_t n, int64_t i, double x, double y, double *t) {
   const double *a = c + 3 * i, *b = c + 3 * ((i + 1) % n);
-  double dx = b[0] - a[0], dy = b[1] - a[1];
+  double dx = b[0] - a[0], dy = b[1] - a[1], ex, ey;
   double f = ((x - a[0]) * dx + (y - a[1]) * dy) / (dx * dx + dy * dy);
   f = f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);
   *t = f;
-  return hypot(x - (a[0] + f * dx), y - (a[1] + f * dy));
+  ex = x - (a[0] + f * dx);
+  ey = y - (a[1] + f * dy);
+  return ex * ex + ey * ey;
 }
 
 void lf_locate(const double *c, int32_t n, double length, double x, double y, int64_t *seg, double *progress,
                double *offset) {
   int64_t i = *seg, j;
-  double t, best, tj, dj, len, dx, dy, cross;
+  double t, best, tj, dj, len, dx, dy, cross, dist;
   const double *a, *b;
   if (i < 0 || i >= n) { /* global search: once per phase */
     i = 0;
-    best = segment_distance(c, n, 0, x, y, &t);
+    best = segment_distance2(c, n, 0, x, y, &t);
     for (j = 1; j < n; j++) {
-      dj = segment_distance(c, n, j, x, y, &tj);
+      dj = segment_distance2(c, n, j, x, y, &tj);
       if (dj < best) best = dj, i = j;
     }
   }
-  best = segment_distance(c, n, i, x, y, &t);
+  best = segment_distance2(c, n, i, x, y, &t);
   for (;;) { /* forward while nearer */
     j = (i + 1) % n;
-    dj = segment_distance(c, n, j, x, y, &tj);
+    dj = segment_distance2(c, n, j, x, y, &tj);
     if (!(dj < best)) break;
-    i = j, best = dj;
+    i = j, best = dj, t = tj;
   }
   for (;;) { /* backward while nearer */
     j = (i + n - 1) % n;
-    dj = segment_distance(c, n, j, x, y, &tj);
+    dj = segment_distance2(c, n, j, x, y, &tj);
     if (!(dj < best)) break;
-    i = j, best = dj;
+    i = j, best = dj, t = tj;
   }
-  best = segment_distance(c, n, i, x, y, &t);
   a = c + 3 * i;
   b = c + 3 * ((i + 1) % n);
   dx = b[0] - a[0];
   dy = b[1] - a[1];
   len = (i + 1 < n ? b[2] : length) - a[2];
+  dist = hypot(x - (a[0] + t * dx), y - (a[1] + t * dy));
   *progress = fmod(a[2] + t * len, length);
   cross = dx * (y - (a[1] + t * dy)) - dy * (x - (a[0] + t * dx));
-  *offset = cross >= 0.0 ? best : -best;
+  *offset = cross >= 0.0 ? dist : -dist;
   *seg = i;
 }
 

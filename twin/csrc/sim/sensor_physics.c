@@ -8,7 +8,7 @@ double lf_footprint_radius(const lf_sensor_model *s, double height_m) {
 
 double lf_footprint_reflectance(const lf_texture *tex, double x, double y, double radius_m) {
   const double mpp = tex->metres_per_pixel;
-  const double r2 = radius_m * radius_m;
+  const double inv_r2 = 1.0 / (radius_m * radius_m); /* a multiply per texel, not a divide */
   int32_t c0 = (int32_t)floor((x - radius_m - tex->origin_x) / mpp);
   int32_t c1 = (int32_t)floor((x + radius_m - tex->origin_x) / mpp);
   int32_t r0 = (int32_t)floor(tex->height - (y + radius_m - tex->origin_y) / mpp);
@@ -23,7 +23,7 @@ double lf_footprint_reflectance(const lf_texture *tex, double x, double y, doubl
     double dy = tex->origin_y + (tex->height - r - 0.5) * mpp - y;
     for (c = c0; c <= c1; c++) {
       double dx = tex->origin_x + (c + 0.5) * mpp - x;
-      double q = (dx * dx + dy * dy) / r2;
+      double q = (dx * dx + dy * dy) * inv_r2;
       if (q < 1.0) {
         double w = (1.0 - q) * (1.0 - q);
         sum += w * tex->data[((int64_t)r * tex->width + c) * tex->nchannel];
