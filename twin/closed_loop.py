@@ -159,7 +159,8 @@ def run_laps(
         lo, hi = np.array(cal[i][0]), np.array(cal[i][1])
         if np.min(hi - lo) < limits.min_calibration_range_us:
             bad = int(np.argmin(hi - lo))
-            judges[i].fail(CALIBRATION, f"sensor {bad} spans only {hi[bad] - lo[bad]} µs after the calibration turn", 0.0, 0.0)
+            judges[i].fail(CALIBRATION, f"sensor {bad} spans only {hi[bad] - lo[bad]} µs after the calibration turn "
+                           "(turn further: control.cal_sweep, control.cal_duty)", 0.0, 0.0)
         _start_phase(sim, RUN)
     consumed = np.zeros(nsim, dtype=np.int64)
     capacity = sims[0].record_capacity
