@@ -151,7 +151,7 @@ def test_c_line_angle_and_duties_equal_python():
 
 
 # --- the robot's MCU
-def test_firmware_builds_for_atmega328p(tmp_path):
+def test_firmware_builds_for_atmega328p(tmp_path, capsys):
     avr_gcc, avr_size = shutil.which("avr-gcc"), shutil.which("avr-size")
     if not (avr_gcc and avr_size):
         if os.environ.get("CI"):
@@ -166,6 +166,7 @@ def test_firmware_builds_for_atmega328p(tmp_path):
     out = subprocess.run([avr_size, "-A", str(elf)], check=True, capture_output=True, text=True).stdout
     size = {line.split()[0]: int(line.split()[1]) for line in out.splitlines() if line.startswith(".")}
     flash, ram = size[".text"] + size.get(".data", 0), size.get(".data", 0) + size.get(".bss", 0)
-    print(f"ATmega328P: flash {flash} B of 32768, RAM {ram} B of 2048")
+    with capsys.disabled():  # the figures belong in the CI log
+        print(f"\nfirmware on the ATmega328P (avr-gcc -Os): flash {flash} B of 32768, RAM {ram} B of 2048")
     assert flash < 32768 - 512  # room left for the 512 B Arduino bootloader
     assert ram < 2048 // 2  # half the RAM stays for the stack and the drivers
