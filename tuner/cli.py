@@ -5,7 +5,7 @@
                   [--max-iter N] [--out gains.json] [--json] [--save tune.rrd] [--view]
 
 With no options it tunes v_max, K_B, K_P, K_I, K_D of the default robot on the default track from the default
-gains. Ctrl-C stops after the current batch, reports, and writes the best gains found so far.
+gains. Ctrl-C stops after the current iteration, reports, and writes the best gains found so far.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def _bounds(items) -> dict[str, tuple[float, float]]:
 
 
 class _Interrupt:
-    """The first Ctrl-C asks the search to stop at the next batch boundary; a second one stops at once."""
+    """The first Ctrl-C asks the search to stop after the current iteration; a second one stops at once."""
 
     def __init__(self):
         self.requested = False
@@ -48,7 +48,7 @@ class _Interrupt:
         if self.requested:
             raise KeyboardInterrupt
         self.requested = True
-        print("\nstopping after this batch (Ctrl-C again to abort)", file=sys.stderr)
+        print("\nstopping after this iteration (Ctrl-C again to abort)", file=sys.stderr)
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
