@@ -141,6 +141,23 @@ def cmd_graph(args: argparse.Namespace) -> int:
     return 0
 
 
+def _shared_world_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--track", default="default", help="built-in track name or a PNG")
+    p.add_argument("--metres-per-pixel", type=float, help="scale of a PNG track without DPI metadata [m]")
+    p.add_argument("--robot", help="a diff-drive URDF instead of the generated robot")
+
+
+def _lazy(module: str, name: str):
+    """A command implemented in a higher room (the tuner), imported only when it runs."""
+
+    def run(args: argparse.Namespace) -> int:
+        import importlib
+
+        return getattr(importlib.import_module(module), name)(args)
+
+    return run
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m twin.run", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
@@ -159,6 +176,21 @@ def parser() -> argparse.ArgumentParser:
     lap.add_argument("--view", action="store_true", help="open the lap in the rerun viewer")
     lap.add_argument("-v", "--verbose", action="store_true")
     lap.set_defaults(func=cmd_lap)
+    al = sub.add_parser("align", help="align a parameter (default motion.mu) to a measured lap time",
+                        description="Find the value of one parameter (tyre friction μ by default) for which the "
+                        "simulated lap equals the measured one within 0.5 %%, or say that none does. Exit status 1 "
+                        "when the measurement is not explained.")
+    al.add_argument("--measured-lap-time", type=float, metavar="SECONDS", help="the robot's lap time [s]")
+    al.add_argument("--parameter", action="append", metavar="ADDRESS", help="what to align (default motion.mu)")
+    al.add_argument("--bounds", action="append", metavar="ADDRESS=LO,HI", help="search range of the parameter")
+    _shared_world_options(al)
+    al.add_argument("--gains", metavar="FILE.json", help="the robot's control gains (default: the twin's)")
+    al.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="model-space parameter, repeatable")
+    al.add_argument("--seed", type=int, default=0, help="sensor-noise seed")
+    al.add_argument("--json", action="store_true", help="print one JSON object")
+    al.add_argument("--save", metavar="ALIGN.rrd", help="rerun recording of the value and lap time per lap")
+    al.add_argument("-v", "--verbose", action="store_true")
+    al.set_defaults(func=_lazy("tuner.commands", "cmd_align"))
     v = sub.add_parser("view", help="open saved rerun recordings (.rrd)")
     v.add_argument("recordings", nargs="+", metavar="RUN.rrd")
     v.set_defaults(func=cmd_view)

@@ -1,0 +1,70 @@
+"""Alignment to a measured lap time (paper §4.1, Fig. 6): hidden μ recovered, unexplained and flat cases."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tuner.align import align_lap_time
+from twin.closed_loop import run_laps
+from twin.digital_twin import DigitalTwin
+from twin.run import main
+
+FAST = {"control.v_max": 1.5, "control.kb": 0.1247, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+
+
+@pytest.fixture(scope="module")
+def fast_twin():
+    t = DigitalTwin()
+    t.update(FAST)  # tuned gains: the robot runs at the grip limit, so μ shows in the lap time
+    return t
+
+
+def test_hidden_mu_is_recovered_from_the_lap_time(fast_twin):
+    measured = run_laps(fast_twin, [{"motion.mu": 0.9}], seed=0)[0].lap_time_s
+    r = align_lap_time(fast_twin, measured)
+    assert r.explained and r.identifiable
+    assert r.value == pytest.approx(0.9, rel=0.05)
+    assert abs(r.simulated_lap_time_s - measured) <= 0.005 * measured
+    assert r.consistent[0] <= r.value <= r.consistent[1]
+    assert fast_twin.space.get("motion.mu") == 0.9  # the twin's own value is untouched by the search
+
+
+def test_unexplained_lap_time_is_reported_with_the_reachable_range():
+    t = DigitalTwin()  # default gains: the tyres never slip above μ ≈ 0.3, so μ cannot make the lap 15.7 s
+    r = align_lap_time(t, 15.7)
+    assert not r.explained and r.value is None
+    lo, hi = r.reachable_s
+    assert 13.0 < lo <= hi < 13.6 and "explains" in r.message and "slower" in r.message
+
+
+def test_flat_lap_time_is_not_identifiable(fast_twin):
+    measured = run_laps(fast_twin, [{"motion.mu": 1.6}], seed=0)[0].lap_time_s
+    r = align_lap_time(fast_twin, measured)
+    assert r.explained and not r.identifiable and "not identifiable" in r.message
+
+
+def test_cli_align_json_and_recording(tmp_path, capsys):
+    gains = tmp_path / "fast.json"
+    gains.write_text(json.dumps(FAST))
+    rrd = tmp_path / "align.rrd"
+    assert main(["align", "--measured-lap-time", "7.02", "--gains", str(gains), "--json", "--save", str(rrd)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("parameter", "value", "simulated_lap_time_s", "measured_lap_time_s", "iterations", "trace"):
+        assert key in out
+    assert out["parameter"] == "motion.mu" and abs(out["simulated_lap_time_s"] - 7.02) <= 0.005 * 7.02
+    assert b"align/value" in rrd.read_bytes()
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--measured-lap-time", "0"], "must be a finite number of seconds > 0"),
+    (["--measured-lap-time", "nan"], "must be a finite number of seconds > 0"),
+    (["--measured-lap-time", "7", "--parameter", "motion.muu"], "unknown parameter address"),
+    (["--measured-lap-time", "7", "--parameter", "cad.L"], "can differ between the laps"),
+    (["--measured-lap-time", "7", "--bounds", "motion.mu=2,0.3"], "inverted"),
+])
+def test_cli_align_bad_input(args, needle, capsys):
+    assert main(["align", *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0]
