@@ -93,3 +93,105 @@ def cmd_align(args: argparse.Namespace) -> int:
         if args.save:
             print(f"recording: {summary['recording']}")
     return 0 if r.explained else 1
+
+
+def _grid_params(items) -> dict[str, tuple[float, ...]]:
+    from tuner.design import DEFAULT_GRID
+
+    if not items:
+        return dict(DEFAULT_GRID)
+    out: dict[str, tuple[float, ...]] = {}
+    for address, text in parse_assignments(items).items():
+        try:
+            values = tuple(float(v) for v in str(text).split(","))
+        except ValueError:
+            raise TunerError(f"--param {address}={text}: expected comma-separated numbers, e.g. cad.L=0.035,0.045") from None
+        if not all(np.isfinite(values)):
+            raise TunerError(f"--param {address}={text}: values must be finite")
+        out[address] = values
+    return out
+
+
+def cmd_design(args: argparse.Namespace) -> int:
+    """Design study: rebuild, tune and evaluate every design of a grid over cad.* parameters."""
+    import time
+
+    from tqdm import tqdm
+
+    from tuner.design import grid, pareto, study, trend
+    from tuner.design_report import write_report
+    from twin.models import default_space
+
+    if args.laps < 1 or args.max_iter < 1 or args.workers < 0:
+        raise TunerError("--laps and --max-iter must be >= 1, --workers >= 0")
+    params = _grid_params(args.param)
+    space = default_space()
+    for address in params:
+        space.parameter(address)  # unknown address: one-line error
+        if not address.startswith("cad."):
+            raise TunerError(f"--param {address}: a design study varies cad.* parameters (the robot's geometry)")
+    fixed = parse_assignments(args.set)
+    space.update(fixed)  # fixed values are checked now: a bad --set is bad input, not a failing design
+    from twin.environment import load_track
+
+    load_track(args.track, space.get("environment.line_width"), space.get("environment.texture_resolution"),
+               args.metres_per_pixel)  # an unknown track or unreadable image: one-line error before any work
+    designs = grid(params)
+    base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": {a: float(v) for a, v in fixed.items()}}
+    t0 = time.perf_counter()
+    bar = tqdm(total=len(designs), desc="designs", unit="design", disable=args.quiet or None)
+    results = study(designs, base, laps=args.laps, max_iter=args.max_iter, workers=args.workers,
+                    on_done=lambda r: (bar.update(1), bar.set_postfix_str(f"{r.label}: {r.median_s:.3f} s" if r.ok else f"{r.label}: failed")))
+    bar.close()
+    wall = time.perf_counter() - t0
+    front = pareto(results)
+    trends = [trend(results, a) for a in params]
+    meta = {"track": args.track, "grid": {a: list(v) for a, v in params.items()}, "fixed": base["values"],
+            "laps_per_design": args.laps, "wall_s": wall}
+    paths = write_report(args.out_dir, results, front, trends, meta)
+    if args.save:
+        paths["recording"] = _save_design(args.save, paths)
+    summary = {**meta, "outputs": paths, "trends": trends,
+               "designs": [{"design": r.design, "ok": r.ok, "error": r.error, "median_lap_time_s": r.median_s if r.ok else None,
+                            "laps_completed": len(r.lap_times_s), "mean_cross_track_m": r.mean_cross_track_m if r.ok else None,
+                            "pareto": on, "gains": r.gains} for r, on in zip(results, front)]}
+    if args.json:
+        print(json.dumps(summary, allow_nan=False, default=str).replace("NaN", "null"))
+    else:
+        for r, on in zip(results, front):
+            if r.ok:
+                t = np.array(r.lap_times_s)
+                spread = f"{t.min():.3f}–{t.max():.3f}" if len(t) else "–"
+                print(f"{r.label:28s} median {r.median_s:7.3f} s ({spread}, {len(t)}/{len(t) + r.failed_laps} laps), "
+                      f"cross-track {r.mean_cross_track_m * 1000:.1f} mm{'  pareto' if on else ''}")
+            else:
+                print(f"{r.label:28s} failed: {r.error}")
+        for t in trends:
+            print(t)
+        print(f"{len(designs)} designs in {wall:.0f} s; wrote {args.out_dir}/ (lap_times.png, pareto.png, designs.csv, "
+              "designs.json, gains/)")
+    return 0
+
+
+def _save_design(out_path: str, paths: dict) -> str:
+    from PIL import Image
+
+    out_path = os.path.abspath(out_path)
+    tmp = f"{out_path}.{os.getpid()}.tmp"
+    rec = rr.RecordingStream(APP_ID)
+    try:
+        rec.save(tmp, default_blueprint=rrb.Blueprint(rrb.Horizontal(
+            rrb.Spatial2DView(name="lap times", origin="/design/lap_times"),
+            rrb.Spatial2DView(name="Pareto", origin="/design/pareto")), collapse_panels=True))
+        for key in ("lap_times", "pareto"):
+            img = np.asarray(Image.open(paths["chart" if key == "lap_times" else "pareto"]).convert("RGB"))
+            rr.log(f"design/{key}", rr.Image(img), static=True, recording=rec)
+        rec.flush()
+        rec.disconnect()
+        os.replace(tmp, out_path)
+    except OSError as e:
+        raise TwinError(f"{out_path}: cannot write the recording ({e.strerror or e})") from None
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return out_path

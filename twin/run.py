@@ -191,6 +191,24 @@ def parser() -> argparse.ArgumentParser:
     al.add_argument("--save", metavar="ALIGN.rrd", help="rerun recording of the value and lap time per lap")
     al.add_argument("-v", "--verbose", action="store_true")
     al.set_defaults(func=_lazy("tuner.commands", "cmd_align"))
+    de = sub.add_parser("design", help="design study: tune and race every design of a grid over cad.* parameters",
+                        description="For each design: rebuild the robot, tune the gains from the same start until "
+                        "convergence, run the converged gains for --laps laps with different noise seeds. Writes a "
+                        "box plot, a Pareto chart, a table and per-design gains to --out-dir.")
+    de.add_argument("--param", action="append", metavar="ADDRESS=V1,V2,...",
+                    help="a cad.* parameter and its values, repeatable (default cad.L=0.035,0.045,0.055 and "
+                         "cad.S=0.04,0.06,0.08)")
+    _shared_world_options(de)
+    de.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="fixed model-space parameter, repeatable")
+    de.add_argument("--laps", type=int, default=20, help="laps per design after tuning, one noise seed each")
+    de.add_argument("--max-iter", type=int, default=30, help="tuning iteration cap per design")
+    de.add_argument("--workers", type=int, default=0, help="designs in parallel (0: one per core)")
+    de.add_argument("--out-dir", default="design_study", help="where the charts, table and gains go")
+    de.add_argument("--json", action="store_true", help="print one JSON object")
+    de.add_argument("--save", metavar="DESIGN.rrd", help="rerun recording of the charts")
+    de.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    de.add_argument("-v", "--verbose", action="store_true")
+    de.set_defaults(func=_lazy("tuner.commands", "cmd_design"))
     v = sub.add_parser("view", help="open saved rerun recordings (.rrd)")
     v.add_argument("recordings", nargs="+", metavar="RUN.rrd")
     v.set_defaults(func=cmd_view)
