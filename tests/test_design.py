@@ -1,0 +1,70 @@
+"""Design study (paper §4.2, Fig. 5): a small study yields charts, a table and tuned gains per design."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from tuner.design import DesignResult, grid, pareto, study, trend
+from twin.run import main
+
+
+def test_grid_is_every_combination_in_order():
+    assert grid({"cad.L": (1, 2), "cad.S": (3, 4, 5)}) == [
+        {"cad.L": a, "cad.S": b} for a in (1, 2) for b in (3, 4, 5)]
+
+
+def fake(design, median, cross):
+    return DesignResult(design, True, None, {}, 1, 1, True, (median,), 0, cross, 0.0)
+
+
+def test_pareto_front_and_trend_statements():
+    rs = [fake({"cad.L": 0.035}, 7.0, 0.004), fake({"cad.L": 0.045}, 7.1, 0.003), fake({"cad.L": 0.055}, 7.2, 0.005)]
+    assert pareto(rs) == [True, True, False]  # the last is beaten on both
+    assert trend(rs, "cad.L").startswith("larger cad.L raises the converged lap time")
+
+
+def test_small_study_writes_charts_table_and_gains(tmp_path, capsys):
+    out = tmp_path / "study"
+    code = main(["design", "--param", "cad.L=0.035,0.055", "--param", "cad.R=0.016,0", "--laps", "2",
+                 "--max-iter", "2", "--workers", "1", "--out-dir", str(out), "--json", "-q"])
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    designs = summary["designs"]
+    assert [d["ok"] for d in designs] == [True, False, True, False]
+    assert "cad.R" in designs[1]["error"]  # a design that cannot be built is reported, the others go on
+    for name in ("lap_times.png", "pareto.png", "designs.csv", "designs.json"):
+        assert (out / name).stat().st_size > 1000 or name == "designs.csv"
+    assert (out / "lap_times.png").read_bytes()[:4] == b"\x89PNG"
+    rows = list(csv.DictReader(open(out / "designs.csv")))
+    assert len(rows) == 4 and rows[0]["ok"] == "True" and float(rows[0]["median_lap_time_s"]) > 0
+    gains = sorted((out / "gains").glob("*.json"))
+    assert len(gains) == 2
+    # each design's tuned gains load into a lap of that design
+    g = json.loads(gains[0].read_text())
+    design_args = [f"--set={a}={v}" for a, v in g["design"].items()]
+    assert main(["lap", "--gains", str(gains[0]), *design_args, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["completed"]
+
+
+def test_designs_run_in_parallel_processes_with_the_same_results():
+    base = {"track": "oval", "metres_per_pixel": None, "values": {}}
+    designs = [{"cad.S": 0.05}, {"cad.S": 0.07}]
+    parallel = study(designs, base, laps=1, max_iter=1, workers=2)
+    serial = study(designs, base, laps=1, max_iter=1, workers=1)
+    assert [r.lap_times_s for r in parallel] == [r.lap_times_s for r in serial]
+    assert [r.gains for r in parallel] == [r.gains for r in serial]
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--param", "cad.Q=1,2"], "unknown parameter address"),
+    (["--param", "motion.mu=0.5,0.9"], "varies cad.* parameters"),
+    (["--param", "cad.L=0.04,x"], "comma-separated numbers"),
+    (["--track", "nowhere"], "unknown track"),
+])
+def test_design_bad_input_is_one_line_and_exit_2(args, needle, capsys, tmp_path):
+    assert main(["design", *args, "--out-dir", str(tmp_path / "x"), "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0]
