@@ -62,13 +62,17 @@ def save_alignment(out_path: str, result) -> str:
 
 
 def cmd_align(args: argparse.Namespace) -> int:
-    """Align a parameter (default motion.mu) so the simulated lap time equals a measured one."""
+    """Align a parameter (default motion.mu) so the simulated lap time equals a measured one, or several
+    parameters so the simulated lap reproduces a recorded run's telemetry."""
     from twin.run import _twin
 
     if args.seed < 0:
         raise TunerError(f"--seed: must be >= 0, got {args.seed}")
-    if args.measured_lap_time is None:
-        raise TunerError("align: give --measured-lap-time SECONDS")
+    if (args.measured_lap_time is None) == (args.telemetry is None):
+        raise TunerError("align: give either --measured-lap-time SECONDS or --telemetry FILE.jsonl")
+    if args.telemetry is not None:
+        return _align_telemetry(args)
+    args.track = args.track or "default"
     parameters = args.parameter or ["motion.mu"]
     if len(parameters) != 1:
         raise TunerError("--measured-lap-time aligns one parameter: one lap time cannot fix several")
@@ -195,3 +199,56 @@ def _save_design(out_path: str, paths: dict) -> str:
         if os.path.exists(tmp):
             os.remove(tmp)
     return out_path
+
+
+def _align_telemetry(args: argparse.Namespace) -> int:
+    from tuner.align_trace import align_telemetry
+    from twin.run import _twin
+    from twin.telemetry import read_telemetry
+
+    tel = read_telemetry(args.telemetry)
+    # the run's own track and gains unless told otherwise: they are what the robot ran with
+    args.track = args.track or tel.header.get("track", "default")
+    twin = _twin(args)
+    if not args.gains and isinstance(tel.header.get("gains"), dict):
+        twin.update({a: float(v) for a, v in tel.header["gains"].items() if not (args.set and any(x.startswith(a + "=") for x in args.set))})
+    parameters = args.parameter or ["motion.mu", "motor.R_M"]
+    r = align_telemetry(twin, tel, parameters, bounds=_bounds(args.bounds, parameters), seed=args.seed)
+    summary = {
+        "telemetry": os.path.abspath(args.telemetry), "parameters": [p.__dict__ for p in r.parameters],
+        "rms_wheel_speed_radps": r.rms_wheel_radps, "simulated_lap_time_s": r.simulated_lap_time_s,
+        "measured_lap_time_s": r.measured_lap_time_s, "iterations": r.iterations, "laps": r.laps,
+        "correlation": r.correlation,
+    }
+    if args.json:
+        print(json.dumps(summary, default=str).replace("NaN", "null").replace("Infinity", "null"))
+    else:
+        for p in r.parameters:
+            ci = f"95 % [{p.ci95[0]:.5g}, {p.ci95[1]:.5g}]" if np.isfinite(p.stderr) else "no interval"
+            print(f"{p.address} = {p.value:.5g}  ({ci}): {p.note}")
+        lap = f"{r.simulated_lap_time_s:.3f} s" if r.simulated_lap_time_s else "not completed"
+        meas = f"{r.measured_lap_time_s:.3f} s" if r.measured_lap_time_s else "no lap in the run"
+        print(f"wheel speeds match to {r.rms_wheel_radps:.3f} rad/s rms; lap {lap} against {meas}; "
+              f"{r.iterations} iterations, {r.laps} laps")
+    return 0 if all(p.identifiable for p in r.parameters) else 1
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    """Run one lap of a twin (with hidden parameters via --set) and write it as robot telemetry."""
+    from twin.closed_loop import run_laps
+    from twin.run import _twin
+    from twin.telemetry import lap_lines, write_telemetry
+
+    if args.seed < 0 or args.every < 1:
+        raise TunerError("--seed must be >= 0 and --every >= 1")
+    args.track = args.track or "default"
+    twin = _twin(args)
+    lap = run_laps(twin, [{}], seed=args.seed)[0]
+    gains = {a: twin.space.get(a) for a in twin.space.addresses if a.startswith("control.")}
+    header = {"track": twin.track.name if not args.track.lower().endswith(".png") else args.track,
+              "sensors": int(twin.space.get("sensor.count")), "dt_s": twin.space.get("control.dt"), "gains": gains,
+              "source": "twin", "seed": args.seed}
+    path = write_telemetry(args.out, lap_lines(lap, header, args.every))
+    what = f"lap {lap.lap_time_s:.3f} s" if lap.completed else f"not completed ({lap.failure})"
+    print(f"wrote {path}: {what}, {len(lap.trace.records[::args.every])} samples")
+    return 0

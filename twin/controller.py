@@ -26,7 +26,7 @@ class ControlParams:
       v_max, k_b, k_p, k_i, k_d: Eqs. 10–11 (x of Eq. 13) in [m/s], [m/s/rad], [1/s], [1/s²], [-].
       dt_s: control period Δt.
       wheel_radius_m, half_track_m: R and L.
-      wheel_speed_max: wheel speed at full duty with no load [rad/s].
+      wheel_speed_max: wheel speed the firmware expects at full duty [rad/s] (``control.full_speed``).
       accel_max: ramp limit of the forward-speed command [m/s²].
       integral_limit: anti-windup bound on ∫e dt [rad·s].
       cal_duty, cal_sweep_rad, cal_sweeps: the in-place calibration turn (duty, nominal sweep, sweeps).

@@ -133,12 +133,13 @@ class DigitalTwin:
             raise TwinError(
                 f"control.dt: {c['dt']:g} s is not a whole number of physics steps ({model.opt.timestep:g} s)"
             )
-        supply = self.space.get("motor.supply_voltage")
+        # the firmware's belief about its motors is its own constant (control.full_speed), not the simulated motor:
+        # a robot whose real motors differ from the datasheet drives differently, as it would
         return ControlParams(
             count=int(self.space.get("sensor.count")), pitch_m=self.space.get("sensor.pitch"),
             sensor_distance_m=self.sensor_distance, v_max=c["v_max"], k_b=c["kb"], k_p=c["kp"], k_i=c["ki"],
             k_d=c["kd"], dt_s=c["dt"], wheel_radius_m=self.info.wheel_radius, half_track_m=self.info.half_track,
-            wheel_speed_max=self.motor().no_load_speed_wheel(supply), accel_max=c["accel_max"],
+            wheel_speed_max=c["full_speed"], accel_max=c["accel_max"],
             integral_limit=c["integral_limit"], cal_duty=c["cal_duty"], cal_sweep_rad=c["cal_sweep"],
             cal_sweeps=int(c["cal_sweeps"]),
         )

@@ -149,6 +149,8 @@ def control_model() -> PartialModel:
             Parameter("kd", "-", d["k_d"], 0.0, 10.0, C, "Eq. 11: derivative gain"),
             Parameter("dt", "s", d["dt"], 1e-4, 0.05, C, "control period Δt (a whole number of physics steps)", True),
             Parameter("accel_max", "m/s²", d["accel_max"], 0.01, 100.0, C, "forward-speed ramp limit", True),
+            Parameter("full_speed", "rad/s", POLOLU_MP_6V_30_1.constants().no_load_speed_wheel(PhysicsOptions().supply_voltage),
+                      1.0, 1000.0, C, "wheel speed the firmware expects at full PWM (datasheet no-load speed)", True),
             Parameter("integral_limit", "rad·s", d["integral_limit"], 0.0, 10.0, C, "anti-windup bound on ∫e dt"),
             Parameter("cal_duty", "-", d["cal_duty"], 0.01, 1.0, C, "PWM duty of the calibration turn", True),
             Parameter("cal_sweep", "rad", d["cal_sweep"], 0.1, 3.0, C, "nominal calibration sweep each way", True),

@@ -141,8 +141,8 @@ def cmd_graph(args: argparse.Namespace) -> int:
     return 0
 
 
-def _shared_world_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--track", default="default", help="built-in track name or a PNG")
+def _shared_world_options(p: argparse.ArgumentParser, track_default: str | None = "default") -> None:
+    p.add_argument("--track", default=track_default, help="built-in track name or a PNG (default: default)")
     p.add_argument("--metres-per-pixel", type=float, help="scale of a PNG track without DPI metadata [m]")
     p.add_argument("--robot", help="a diff-drive URDF instead of the generated robot")
 
@@ -181,9 +181,13 @@ def parser() -> argparse.ArgumentParser:
                         "simulated lap equals the measured one within 0.5 %%, or say that none does. Exit status 1 "
                         "when the measurement is not explained.")
     al.add_argument("--measured-lap-time", type=float, metavar="SECONDS", help="the robot's lap time [s]")
-    al.add_argument("--parameter", action="append", metavar="ADDRESS", help="what to align (default motion.mu)")
-    al.add_argument("--bounds", action="append", metavar="ADDRESS=LO,HI", help="search range of the parameter")
-    _shared_world_options(al)
+    al.add_argument("--telemetry", metavar="LAP.jsonl", help="a recorded run (lf-telemetry, see twin.telemetry) to "
+                    "match trace by trace; its track and gains are used unless --track/--gains say otherwise")
+    al.add_argument("--parameter", action="append", metavar="ADDRESS",
+                    help="what to align, repeatable with --telemetry (default motion.mu; with --telemetry motion.mu "
+                         "and motor.R_M)")
+    al.add_argument("--bounds", action="append", metavar="ADDRESS=LO,HI", help="search range of a parameter")
+    _shared_world_options(al, track_default=None)
     al.add_argument("--gains", metavar="FILE.json", help="the robot's control gains (default: the twin's)")
     al.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="model-space parameter, repeatable")
     al.add_argument("--seed", type=int, default=0, help="sensor-noise seed")
@@ -191,6 +195,17 @@ def parser() -> argparse.ArgumentParser:
     al.add_argument("--save", metavar="ALIGN.rrd", help="rerun recording of the value and lap time per lap")
     al.add_argument("-v", "--verbose", action="store_true")
     al.set_defaults(func=_lazy("tuner.commands", "cmd_align"))
+    rc = sub.add_parser("record", help="run one lap and write it as robot telemetry (lf-telemetry JSON Lines)",
+                        description="A stand-in for the physical robot's log: one lap of a twin whose hidden "
+                        "parameters you set with --set, its own noise seed, written as telemetry for align --telemetry.")
+    _shared_world_options(rc)
+    rc.add_argument("--gains", metavar="FILE.json", help="the robot's control gains")
+    rc.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="hidden model-space parameter, repeatable")
+    rc.add_argument("--seed", type=int, default=7, help="the robot's noise seed (differs from the twin's 0)")
+    rc.add_argument("--every", type=int, default=2, help="one sample every N control ticks")
+    rc.add_argument("--out", required=True, metavar="LAP.jsonl", help="where to write the telemetry")
+    rc.add_argument("-v", "--verbose", action="store_true")
+    rc.set_defaults(func=_lazy("tuner.commands", "cmd_record"))
     de = sub.add_parser("design", help="design study: tune and race every design of a grid over cad.* parameters",
                         description="For each design: rebuild the robot, tune the gains from the same start until "
                         "convergence, run the converged gains for --laps laps with different noise seeds. Writes a "

@@ -1,0 +1,90 @@
+"""Telemetry format and alignment to a recorded run: hidden parameters recovered, flat ones reported."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from twin.closed_loop import run_laps
+from twin.digital_twin import DigitalTwin
+from twin.errors import TwinError
+from twin.run import main
+from twin.telemetry import lap_lines, read_telemetry, write_telemetry
+from tuner.align_trace import align_telemetry
+
+GAINS = {"control.v_max": 1.0, "control.kb": 0.3, "control.kp": 25.0, "control.kd": 0.5}
+
+
+@pytest.fixture(scope="module")
+def oval():
+    t = DigitalTwin(track="oval")  # short: 4.9 m, a lap in ≈ 5.5 s
+    t.update(GAINS)
+    return t
+
+
+@pytest.fixture(scope="module")
+def recorded(oval, tmp_path_factory):
+    """A 'robot' with hidden motor constants and its own noise seed."""
+    hidden = {"motor.R_M": 10.0, "motor.K": oval.space.get("motor.K") * 1.08}
+    lap = run_laps(oval, [hidden], seed=7)[0]
+    path = tmp_path_factory.mktemp("tel") / "lap.jsonl"
+    write_telemetry(str(path), lap_lines(lap, {"track": "oval", "sensors": 8, "dt_s": 0.005, "gains": GAINS}, 2))
+    return str(path), hidden, lap
+
+
+def test_telemetry_round_trip(recorded):
+    path, _, lap = recorded
+    tel = read_telemetry(path)
+    assert tel.header["format"] == "lf-telemetry" and tel.header["version"] == 1
+    assert tel.lap_time_s == pytest.approx(lap.lap_time_s)
+    assert len(tel.t) == len(lap.trace.records[::2]) and (tel.t[1:] > tel.t[:-1]).all()
+    assert tel.wl[100] == pytest.approx(lap.trace.column("wheel_left_radps")[200], abs=1e-4)
+
+
+def test_two_hidden_parameters_are_recovered_from_the_traces(oval, recorded):
+    path, hidden, _ = recorded
+    r = align_telemetry(oval, read_telemetry(path), ["motor.R_M", "motor.K"])
+    for p in r.parameters:
+        assert p.value == pytest.approx(hidden[p.address], rel=0.05), p
+        assert p.identifiable
+    assert r.rms_wheel_radps < 1.0  # the noise of a different seed is ≈ 0.7 rad/s
+    assert oval.space.get("motor.R_M") != 10.0  # the twin itself is left as it was
+
+
+def test_a_parameter_the_run_does_not_exercise_is_reported(oval, recorded):
+    """At v_max 1 m/s the tyres never reach their grip limit: μ cannot be seen in the traces."""
+    path, hidden, _ = recorded
+    r = align_telemetry(oval, read_telemetry(path), ["motion.mu", "motor.R_M"])
+    mu, rm = r.parameters
+    assert not mu.identifiable and "not identifiable" in mu.note
+    assert rm.identifiable and rm.value == pytest.approx(10.0, rel=0.05)
+
+
+@pytest.mark.parametrize("body, needle", [
+    ('{"type":"header","format":"lf-telemetry","version":1,"dt_s":0.005,"sensors":8}\n{"type":"sample","t":0}\n',
+     ":2: field 'pos' must be a finite number"),
+    ('{"type":"header","format":"lf-telemetry","version":1,"dt_s":0.005,"sensors":8}\n{"type":"sample",\n',
+     ":2: not a JSON object"),
+    ('{"type":"sample","t":0}\n', ":1: the first line must be the lf-telemetry header"),
+    ('{"type":"header","format":"lf-telemetry","version":9,"dt_s":0.005,"sensors":8}\n', "version 9 is not supported"),
+    ('{"type":"header","format":"lf-telemetry","version":1,"dt_s":0.005,"sensors":8}\n'
+     '{"type":"sample","t":1,"pos":0,"seen":1,"wl":0,"wr":0}\n{"type":"sample","t":0.5,"pos":0,"seen":1,"wl":0,"wr":0}\n',
+     ":3: sample time 0.5 s does not follow 1 s"),
+])
+def test_malformed_telemetry_names_the_line(tmp_path, body, needle, capsys):
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(body)
+    with pytest.raises(TwinError, match=needle.replace("(", r"\(")):
+        read_telemetry(str(bad))
+    assert main(["align", "--telemetry", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(bad) in err[0]
+
+
+def test_cli_record_writes_a_readable_run(tmp_path, capsys):
+    out = tmp_path / "lap.jsonl"
+    assert main(["record", "--track", "oval", "--set", "motion.mu=0.55", "--out", str(out)]) == 0
+    tel = read_telemetry(str(out))
+    assert tel.header["track"] == "oval" and tel.lap_time_s is not None
+    assert json.loads(out.read_text().splitlines()[0])["gains"]["control.v_max"] == 0.6
