@@ -13,7 +13,7 @@ import pytest
 
 from line_sensor.processing import read_calibrated, read_line, line_angle
 from twin import controller as ref
-from twin.core import FwState, Params, lib, params_to_c
+from twin.core import FwState, lib, params_to_c
 
 FIRMWARE = os.path.join(os.path.dirname(__file__), "..", "twin", "csrc", "firmware")
 PITCH, S = 0.009525, 0.040

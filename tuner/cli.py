@@ -16,26 +16,13 @@ import signal
 import sys
 import time
 
-import numpy as np
 
-from mjcf.cli import parse_assignments, run_guarded
+from mjcf.cli import run_guarded
 from tuner.gradient import DescentOptions, descend, sequential
 from tuner.objective import LapObjective
-from tuner.space import SearchSpace, TunerError
+from tuner.space import SearchSpace, TunerError, parse_bounds
 from twin.closed_loop import run_laps
 from twin.errors import TwinError
-
-
-def _bounds(items) -> dict[str, tuple[float, float]]:
-    out = {}
-    for address, text in parse_assignments(items).items():
-        parts = str(text).split(",")
-        try:
-            lo, hi = (float(p) for p in parts)
-        except ValueError:
-            raise TunerError(f"--bounds {address}={text}: expected LOWER,UPPER, e.g. control.kp=1,60") from None
-        out[address] = (lo, hi)
-    return out
 
 
 class _Interrupt:
@@ -55,7 +42,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
     from twin.run import _twin  # the twin the shared options describe: track, robot, gains file, --set
 
     twin = _twin(args)
-    space = SearchSpace(twin.space, args.param or (), _bounds(args.bounds))
+    space = SearchSpace(twin.space, args.param or (), parse_bounds(args.bounds))
     x0 = space.start(twin.space)
     try:
         options = DescentOptions(max_iter=args.max_iter)

@@ -14,51 +14,23 @@ import rerun.blueprint as rrb
 
 from mjcf.cli import parse_assignments
 from tuner.align import align_lap_time
-from tuner.space import TunerError
-from twin.errors import TwinError
-from twin.recording import APP_ID
-
-
-def _bounds(items, addresses) -> dict[str, tuple[float, float]]:
-    out = {}
-    for address, text in parse_assignments(items).items():
-        if address not in addresses:
-            raise TunerError(f"--bounds {address}: not an aligned parameter ({', '.join(addresses)})")
-        try:
-            lo, hi = (float(p) for p in str(text).split(","))
-        except ValueError:
-            raise TunerError(f"--bounds {address}={text}: expected LOWER,UPPER, e.g. motion.mu=0.3,2") from None
-        out[address] = (lo, hi)
-    return out
+from tuner.space import TunerError, parse_bounds
+from twin.recording import recording_file
 
 
 def save_alignment(out_path: str, result) -> str:
-    """μ (or the aligned parameter) and lap time per iteration, as Fig. 6b–c; written atomically."""
-    out_path = os.path.abspath(out_path)
-    tmp = f"{out_path}.{os.getpid()}.tmp"
-    rec = rr.RecordingStream(APP_ID)
-    try:
-        rec.save(tmp, default_blueprint=rrb.Blueprint(rrb.Vertical(
-            rrb.TimeSeriesView(name=f"{result.parameter}", origin="/align/value"),
-            rrb.TimeSeriesView(name="lap time [s]", contents=["/align/lap_time", "/align/measured"]),
-        ), collapse_panels=True))
+    """μ (or the aligned parameter) and lap time per lap, as Fig. 6b–c; written atomically."""
+    blueprint = rrb.Blueprint(rrb.Vertical(
+        rrb.TimeSeriesView(name=f"{result.parameter}", origin="/align/value"),
+        rrb.TimeSeriesView(name="lap time [s]", contents=["/align/lap_time", "/align/measured"]),
+    ), collapse_panels=True)
+    with recording_file(out_path, blueprint) as rec:
         pts = [p for p in result.trace if p.lap_time_s is not None]
-        k = np.arange(len(pts))
-        idx = [rr.TimeColumn("lap", sequence=k)]
-        rr.send_columns("align/value", indexes=idx, columns=rr.Scalars.columns(scalars=[p.value for p in pts]), recording=rec)
-        rr.send_columns("align/lap_time", indexes=idx, columns=rr.Scalars.columns(scalars=[p.lap_time_s for p in pts]),
-                        recording=rec)
-        rr.send_columns("align/measured", indexes=idx,
-                        columns=rr.Scalars.columns(scalars=np.full(len(pts), result.measured_lap_time_s)), recording=rec)
-        rec.flush()
-        rec.disconnect()
-        os.replace(tmp, out_path)
-    except OSError as e:
-        raise TwinError(f"{out_path}: cannot write the recording ({e.strerror or e})") from None
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return out_path
+        idx = [rr.TimeColumn("lap", sequence=np.arange(len(pts)))]
+        for entity, values in (("align/value", [p.value for p in pts]), ("align/lap_time", [p.lap_time_s for p in pts]),
+                               ("align/measured", np.full(len(pts), result.measured_lap_time_s))):
+            rr.send_columns(entity, indexes=idx, columns=rr.Scalars.columns(scalars=values), recording=rec)
+    return os.path.abspath(out_path)
 
 
 def cmd_align(args: argparse.Namespace) -> int:
@@ -77,7 +49,7 @@ def cmd_align(args: argparse.Namespace) -> int:
     if len(parameters) != 1:
         raise TunerError("--measured-lap-time aligns one parameter: one lap time cannot fix several")
     twin = _twin(args)
-    bounds = _bounds(args.bounds, parameters).get(parameters[0])
+    bounds = parse_bounds(args.bounds, parameters).get(parameters[0])
     r = align_lap_time(twin, args.measured_lap_time, parameters[0], bounds=bounds, seed=args.seed)
     summary = {
         "parameter": r.parameter, "value": r.value, "simulated_lap_time_s": r.simulated_lap_time_s,
@@ -180,25 +152,13 @@ def cmd_design(args: argparse.Namespace) -> int:
 def _save_design(out_path: str, paths: dict) -> str:
     from PIL import Image
 
-    out_path = os.path.abspath(out_path)
-    tmp = f"{out_path}.{os.getpid()}.tmp"
-    rec = rr.RecordingStream(APP_ID)
-    try:
-        rec.save(tmp, default_blueprint=rrb.Blueprint(rrb.Horizontal(
-            rrb.Spatial2DView(name="lap times", origin="/design/lap_times"),
-            rrb.Spatial2DView(name="Pareto", origin="/design/pareto")), collapse_panels=True))
-        for key in ("lap_times", "pareto"):
-            img = np.asarray(Image.open(paths["chart" if key == "lap_times" else "pareto"]).convert("RGB"))
-            rr.log(f"design/{key}", rr.Image(img), static=True, recording=rec)
-        rec.flush()
-        rec.disconnect()
-        os.replace(tmp, out_path)
-    except OSError as e:
-        raise TwinError(f"{out_path}: cannot write the recording ({e.strerror or e})") from None
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return out_path
+    blueprint = rrb.Blueprint(rrb.Horizontal(
+        rrb.Spatial2DView(name="lap times", origin="/design/lap_times"),
+        rrb.Spatial2DView(name="Pareto", origin="/design/pareto")), collapse_panels=True)
+    with recording_file(out_path, blueprint) as rec:
+        for entity, key in (("design/lap_times", "chart"), ("design/pareto", "pareto")):
+            rr.log(entity, rr.Image(np.asarray(Image.open(paths[key]).convert("RGB"))), static=True, recording=rec)
+    return os.path.abspath(out_path)
 
 
 def _align_telemetry(args: argparse.Namespace) -> int:
@@ -213,7 +173,7 @@ def _align_telemetry(args: argparse.Namespace) -> int:
     if not args.gains and isinstance(tel.header.get("gains"), dict):
         twin.update({a: float(v) for a, v in tel.header["gains"].items() if not (args.set and any(x.startswith(a + "=") for x in args.set))})
     parameters = args.parameter or ["motion.mu", "motor.R_M"]
-    r = align_telemetry(twin, tel, parameters, bounds=_bounds(args.bounds, parameters), seed=args.seed)
+    r = align_telemetry(twin, tel, parameters, bounds=parse_bounds(args.bounds, parameters), seed=args.seed)
     summary = {
         "telemetry": os.path.abspath(args.telemetry), "parameters": [p.__dict__ for p in r.parameters],
         "rms_wheel_speed_radps": r.rms_wheel_radps, "simulated_lap_time_s": r.simulated_lap_time_s,

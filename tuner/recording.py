@@ -10,9 +10,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from twin.digital_twin import DigitalTwin
-from twin.errors import TwinError
 from twin.lap import LapResult
-from twin.recording import APP_ID, log_lap, log_track
+from twin.recording import log_lap, log_track, recording_file
 from tuner.gradient import Iteration
 from tuner.space import SearchSpace
 
@@ -20,8 +19,6 @@ from tuner.space import SearchSpace
 def save_tuning(out_path: str, twin: DigitalTwin, space: SearchSpace, iterations: Sequence[Iteration],
                 best_lap: LapResult) -> str:
     """Write the tuning run to an .rrd file atomically; returns its path."""
-    out_path = os.path.abspath(out_path)
-    tmp = f"{out_path}.{os.getpid()}.tmp"
     blueprint = rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(
@@ -32,9 +29,7 @@ def save_tuning(out_path: str, twin: DigitalTwin, space: SearchSpace, iterations
         ),
         collapse_panels=True,
     )
-    rec = rr.RecordingStream(APP_ID)
-    try:
-        rec.save(tmp, default_blueprint=blueprint)
+    with recording_file(out_path, blueprint) as rec:
         k = np.array([it.k for it in iterations])
         index = [rr.TimeColumn("iteration", sequence=k)]
         rr.send_columns("tuning/lap_time", indexes=index, columns=rr.Scalars.columns(scalars=[it.cost for it in iterations]),
@@ -46,12 +41,4 @@ def save_tuning(out_path: str, twin: DigitalTwin, space: SearchSpace, iterations
             rr.send_columns(f"tuning/value/{a}", indexes=index, columns=rr.Scalars.columns(scalars=x), recording=rec)
         log_track(rec, twin.track, twin.texture)
         log_lap(rec, twin.track, twin.texture, best_lap, "best")
-        rec.flush()
-        rec.disconnect()
-        os.replace(tmp, out_path)
-    except OSError as e:
-        raise TwinError(f"{out_path}: cannot write the recording ({e.strerror or e})") from None
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return out_path
+    return os.path.abspath(out_path)

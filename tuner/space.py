@@ -97,3 +97,20 @@ class SearchSpace:
 
     def assignments(self, x: np.ndarray) -> dict[str, float]:
         return {a: float(v) for a, v in zip(self.addresses, x)}
+
+
+def parse_bounds(items, addresses: Sequence[str] | None = None) -> dict[str, tuple[float, float]]:
+    """``["control.kp=1,60", ...]`` → {"control.kp": (1.0, 60.0)}; each address must be among ``addresses``
+    when given. The bounds themselves are checked where they are used (:class:`SearchSpace`, the aligners)."""
+    from mjcf.cli import parse_assignments
+
+    out = {}
+    for address, text in parse_assignments(items).items():
+        if addresses is not None and address not in addresses:
+            raise TunerError(f"--bounds {address}: not a searched parameter ({', '.join(addresses)})")
+        try:
+            lo, hi = (float(p) for p in str(text).split(","))
+        except ValueError:
+            raise TunerError(f"--bounds {address}={text}: expected LOWER,UPPER, e.g. control.kp=1,60") from None
+        out[address] = (lo, hi)
+    return out

@@ -6,8 +6,9 @@ views out. Files are written to a temporary name and renamed when complete, so a
 
 from __future__ import annotations
 
+import contextlib
 import os
-from typing import Sequence
+from typing import Iterator, Sequence
 
 import numpy as np
 import rerun as rr
@@ -87,16 +88,16 @@ def log_track(rec: rr.RecordingStream, track: Track, texture: FloorTexture) -> N
     rr.log("track/start", rr.Points2D(start, radii=3.0, colors=[[40, 200, 80]], labels=["start"]), static=True, recording=rec)
 
 
-def save_laps(out_path: str, track: Track, texture: FloorTexture, results: Sequence[LapResult], names: Sequence[str]) -> str:
-    """Write laps to an .rrd file atomically; returns its path."""
+@contextlib.contextmanager
+def recording_file(out_path: str, blueprint: rrb.Blueprint) -> Iterator[rr.RecordingStream]:
+    """A recording saved to ``out_path``: written to a temporary name and renamed into place only when the
+    ``with`` block completes, so a failure leaves no half file. ``out_path`` is made absolute."""
     out_path = os.path.abspath(out_path)
     tmp = f"{out_path}.{os.getpid()}.tmp"
     rec = rr.RecordingStream(APP_ID)
     try:
-        rec.save(tmp, default_blueprint=lap_blueprint(results[0].trace.count if results and results[0].trace else 8))
-        log_track(rec, track, texture)
-        for r, n in zip(results, names):
-            log_lap(rec, track, texture, r, n)
+        rec.save(tmp, default_blueprint=blueprint)
+        yield rec
         rec.flush()
         rec.disconnect()
         os.replace(tmp, out_path)
@@ -105,7 +106,16 @@ def save_laps(out_path: str, track: Track, texture: FloorTexture, results: Seque
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
-    return out_path
+
+
+def save_laps(out_path: str, track: Track, texture: FloorTexture, results: Sequence[LapResult], names: Sequence[str]) -> str:
+    """Write laps to an .rrd file atomically; returns its path."""
+    count = results[0].trace.count if results and results[0].trace else 8
+    with recording_file(out_path, lap_blueprint(count)) as rec:
+        log_track(rec, track, texture)
+        for r, n in zip(results, names):
+            log_lap(rec, track, texture, r, n)
+    return os.path.abspath(out_path)
 
 
 def view(paths: Sequence[str] = ()) -> None:
