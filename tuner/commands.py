@@ -212,3 +212,128 @@ def cmd_record(args: argparse.Namespace) -> int:
     what = f"lap {lap.lap_time_s:.3f} s" if lap.completed else f"not completed ({lap.failure})"
     print(f"wrote {path}: {what}, {len(lap.trace.records[::args.every])} samples")
     return 0
+
+
+def cmd_emulate(args: argparse.Namespace) -> int:
+    """A stand-in robot streaming wire telemetry on a pty (default) or a 127.0.0.1 TCP port."""
+    import sys
+
+    from twin.emulator import lap_records, open_pty, serve_tcp, stream
+    from twin.run import _twin
+
+    if args.speed <= 0 or args.every < 1 or args.seed < 0:
+        raise TunerError("--speed must be > 0, --every >= 1 and --seed >= 0")
+    args.track = args.track or "default"
+    twin = _twin(args)
+    twin.model()
+    echo_file = open(args.echo, "a", buffering=1) if args.echo else None
+    echo = echo_file.write if echo_file else None
+    lines = lap_records(twin, args.seed, args.every, args.laps)
+    try:
+        if args.tcp is not None:
+            server = serve_tcp(args.tcp)
+            print(f"robot emulator on socket://127.0.0.1:{server.getsockname()[1]}", flush=True)
+            while True:
+                conn, _ = server.accept()
+                try:
+                    stream(lines, conn.sendall, args.speed, echo)
+                    return 0
+                except OSError:
+                    continue  # the reader went away: wait for the next one, carry on with the laps
+                finally:
+                    conn.close()
+        master, slave, path = open_pty(args.link)
+        print(f"robot emulator on {path}", flush=True)
+        stream(lines, lambda b: os.write(master, b), args.speed, echo)
+        sys.stdout.flush()
+        return 0
+    finally:
+        if echo_file:
+            echo_file.close()
+
+
+def cmd_live(args: argparse.Namespace) -> int:
+    """Run the twin beside the robot: compare laps, re-align when they keep disagreeing."""
+    import signal
+    import time
+
+    from tuner.live import LinkStats, LiveOptions, LiveTwin, replay_log, run_link
+    from twin.run import _twin
+
+    args.track = args.track or "default"
+    twin = _twin(args)
+    twin.model()
+    parameters = args.parameter or ["motion.mu"]
+    if len(parameters) != 1:
+        raise TunerError("live: re-aligns one parameter (--parameter) from lap times")
+    if not (args.threshold > 0 and args.k_laps >= 1):
+        raise TunerError("--threshold must be > 0 and --k-laps >= 1")
+    twin.space.parameter(parameters[0])
+    bounds = parse_bounds(args.bounds, parameters).get(parameters[0], LiveOptions.bounds if parameters[0] == "motion.mu" else None)
+    options = LiveOptions(parameters[0], bounds, args.threshold, args.k_laps, args.seed)
+    state = args.state or f"{args.log}.state.json"
+    rec = _live_recording(args)
+
+    def on_lap(e):
+        if not e["replayed"]:
+            d = "–" if e["discrepancy"] is None else f"{e['discrepancy'] * 100:+.2f} %"
+            robot = f"{e['robot_lap_time_s']:.3f} s" if e["robot_lap_time_s"] else "failed"
+            print(f"lap {e['lap']}: robot {robot}, twin {e['twin_lap_time_s']:.3f} s ({d}), "
+                  f"{options.address} = {e[options.address]:.5g}", flush=True)
+        if rec is not None:
+            _log_live_lap(rec, e, options.address)
+
+    live = LiveTwin(twin, options, state, on_lap)
+    stats = LinkStats()
+    if os.path.isfile(args.log):
+        replay_log(args.log, live, stats)
+        print(f"resumed {len(live.laps)} laps from {args.log}", flush=True)
+    start_laps, t0 = len(live.laps), time.monotonic()
+    stopping = [False]
+    signal.signal(signal.SIGINT, lambda *a: stopping.__setitem__(0, True))
+    signal.signal(signal.SIGTERM, lambda *a: stopping.__setitem__(0, True))
+
+    def stop() -> bool:
+        done_laps = args.laps is not None and len(live.laps) - start_laps >= args.laps
+        timed_out = args.duration is not None and time.monotonic() - t0 > args.duration
+        return stopping[0] or done_laps or timed_out
+
+    run_link(args.port, live, args.log, stats, stop)
+    live.finish()
+    summary = {"laps": len(live.laps) - start_laps, "resumed_laps": start_laps, "lines": stats.lines,
+               "corrupted": stats.corrupted, "reconnects": stats.reconnects,
+               "value": {options.address: twin.space.get(options.address)}, "alignments": live.alignments,
+               "log": os.path.abspath(args.log), "state": os.path.abspath(state)}
+    if args.json:
+        print(json.dumps(summary, default=str))
+    else:
+        print(f"{summary['laps']} laps, {stats.lines} lines ({stats.corrupted} corrupted), {stats.reconnects} reconnects; "
+              f"{options.address} = {twin.space.get(options.address):.5g}; log {summary['log']}")
+    return 0
+
+
+def _live_recording(args):
+    if not (args.save or args.view):
+        return None
+    rec = rr.RecordingStream("line-follower-twin-live")
+    if args.save:
+        rec.save(os.path.abspath(args.save))
+    if args.view:
+        rec.spawn()
+    return rec
+
+
+def _log_live_lap(rec, e: dict, address: str) -> None:
+    rec.set_time("lap", sequence=e["lap"])
+    if e["robot_lap_time_s"]:
+        rec.log("live/lap_time/robot", rr.Scalars(e["robot_lap_time_s"]))
+    if e["twin_lap_time_s"]:
+        rec.log("live/lap_time/twin", rr.Scalars(e["twin_lap_time_s"]))
+    if e["discrepancy"] is not None:
+        rec.log("live/discrepancy", rr.Scalars(e["discrepancy"]))
+    rec.log(f"live/{address}", rr.Scalars(e[address]))
+    lap = e["lap_record"]
+    if len(lap.t):
+        rec.send_columns("live/robot_wheel_left", indexes=[rr.TimeColumn("lap_time", duration=lap.t)],
+                         columns=rr.Scalars.columns(scalars=lap.wl))
+    rec.flush()

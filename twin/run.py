@@ -206,6 +206,45 @@ def parser() -> argparse.ArgumentParser:
     rc.add_argument("--out", required=True, metavar="LAP.jsonl", help="where to write the telemetry")
     rc.add_argument("-v", "--verbose", action="store_true")
     rc.set_defaults(func=_lazy("tuner.commands", "cmd_record"))
+    em = sub.add_parser("emulate", help="a stand-in robot streaming wire telemetry on a pty or a TCP port",
+                        description="A twin with hidden parameters (--set) and its own noise seed drives lap after "
+                        "lap and streams its telemetry (twin.wire) at real-time pace on a pseudo-terminal it creates "
+                        "(the path is printed) or on 127.0.0.1:--tcp PORT.")
+    _shared_world_options(em)
+    em.add_argument("--gains", metavar="FILE.json", help="the robot's control gains")
+    em.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="hidden model-space parameter, repeatable")
+    em.add_argument("--seed", type=int, default=7, help="the robot's noise seed (lap k uses seed + k)")
+    em.add_argument("--speed", type=float, default=1.0, help="faster than real time by this factor")
+    em.add_argument("--every", type=int, default=2, help="one sample line every N control ticks")
+    em.add_argument("--laps", type=int, help="stop after this many laps (default: run until stopped)")
+    em.add_argument("--tcp", type=int, metavar="PORT", help="serve on 127.0.0.1:PORT instead of a pty (0: any free port)")
+    em.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty, stable across restarts")
+    em.add_argument("--echo", metavar="FILE", help="append every line sent to FILE")
+    em.add_argument("-v", "--verbose", action="store_true")
+    em.set_defaults(func=_lazy("tuner.commands", "cmd_emulate"))
+    lv = sub.add_parser("live", help="run the twin beside the robot: compare laps, re-align when they disagree",
+                        description="Reads wire telemetry from --port (a device path, socket://host:port, loop://, "
+                        "or a pty path), appends every line to --log (flushed per lap), compares each lap with the "
+                        "twin, and re-aligns --parameter in the background when the lap time differs by more than "
+                        "--threshold for --k-laps laps. A restart resumes from the log and its state file.")
+    lv.add_argument("--port", required=True, metavar="PATH_OR_URL", help="serial device, pty path or pyserial URL")
+    _shared_world_options(lv)
+    lv.add_argument("--gains", metavar="FILE.json", help="the robot's control gains")
+    lv.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="the twin's model-space parameter, repeatable")
+    lv.add_argument("--parameter", action="append", metavar="ADDRESS", help="what re-alignment adjusts (default motion.mu)")
+    lv.add_argument("--bounds", action="append", metavar="ADDRESS=LO,HI", help="its search range")
+    lv.add_argument("--threshold", type=float, default=0.005, help="relative lap-time difference that counts [-]")
+    lv.add_argument("--k-laps", type=int, default=2, help="laps in a row above the threshold before re-aligning")
+    lv.add_argument("--seed", type=int, default=0, help="the twin's noise seed")
+    lv.add_argument("--log", default="live_telemetry.log", help="telemetry log: every received line")
+    lv.add_argument("--state", help="state file (default: <log>.state.json)")
+    lv.add_argument("--laps", type=int, help="stop after this many robot laps")
+    lv.add_argument("--duration", type=float, help="stop after this many seconds")
+    lv.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    lv.add_argument("--save", metavar="LIVE.rrd", help="stream the comparison to a rerun recording")
+    lv.add_argument("--view", action="store_true", help="stream the comparison to the rerun viewer")
+    lv.add_argument("-v", "--verbose", action="store_true")
+    lv.set_defaults(func=_lazy("tuner.commands", "cmd_live"))
     de = sub.add_parser("design", help="design study: tune and race every design of a grid over cad.* parameters",
                         description="For each design: rebuild the robot, tune the gains from the same start until "
                         "convergence, run the converged gains for --laps laps with different noise seeds. Writes a "

@@ -1,0 +1,84 @@
+"""A stand-in for the physical robot: a twin with hidden parameters and its own noise seed, driving lap after lap
+and streaming its telemetry in the wire form (:mod:`twin.wire`) at real-time pace (or ``speed`` times faster),
+on a pseudo-terminal it creates or on a TCP port of 127.0.0.1, so the live link is tested through a real
+serial device.
+
+Each lap is simulated ahead of time (from the start line, as the robot crosses it) and then streamed with its
+own sample times, offset by the laps before it; lap k uses noise seed ``seed + k``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import time
+import tty
+from typing import Callable, Iterator
+
+from twin.closed_loop import run_laps
+from twin.digital_twin import DigitalTwin
+from twin.lap import COL
+from twin.wire import Event, Header, Sample, encode
+
+log = logging.getLogger(__name__)
+
+
+def lap_records(twin: DigitalTwin, seed: int, every: int, laps: int | None) -> Iterator[tuple[float, str]]:
+    """(time since power-up [s], wire line) for lap after lap."""
+    offset = 0.0
+    header = encode(Header(int(twin.space.get("sensor.count")), twin.space.get("control.dt"), every))
+    k = 0
+    while laps is None or k < laps:
+        lap = run_laps(twin, [{}], seed=seed + k)[0]
+        yield offset, header
+        yield offset, encode(Event(offset, "START"))
+        for r in lap.trace.records[::every]:
+            t = offset + float(r[COL["time_s"]])
+            yield t, encode(Sample(t, int(r[COL["position"]]), int(r[COL["line_seen"]]),
+                                   float(r[COL["wheel_left_radps"]]), float(r[COL["wheel_right_radps"]])))
+        end = offset + (lap.lap_time_s if lap.completed else lap.simulated_s)
+        yield end, encode(Event(end, "LAP", lap_time_s=lap.lap_time_s) if lap.completed
+                          else Event(end, "FAIL", reason=lap.failure))
+        log.info("lap %d: %s", k, f"{lap.lap_time_s:.3f} s" if lap.completed else lap.failure)
+        offset = end
+        k += 1
+
+
+def stream(lines: Iterator[tuple[float, str]], write: Callable[[bytes], None], speed: float,
+           echo: Callable[[str], None] | None = None) -> None:
+    """Write lines when their time comes: simulated time / speed after the first line."""
+    start = None
+    for t, line in lines:
+        now = time.monotonic()
+        if start is None:
+            start = now - t / speed
+        delay = start + t / speed - now
+        if delay > 0:
+            time.sleep(delay)
+        elif delay < -0.5:  # fell behind (a lap was being simulated): carry on from here, keep the spacing
+            start -= delay
+        write(line.encode("ascii"))
+        if echo:
+            echo(line)
+
+
+def open_pty(link: str | None = None) -> tuple[int, int, str]:
+    """A pseudo-terminal pair in raw mode: (master fd, slave fd, slave path); optionally a stable symlink."""
+    master, slave = os.openpty()
+    tty.setraw(slave)  # no echo, no newline translation: bytes pass as sent
+    path = os.ttyname(slave)
+    if link:
+        tmp = f"{link}.{os.getpid()}.tmp"
+        os.symlink(path, tmp)
+        os.replace(tmp, link)
+        path = link
+    return master, slave, path
+
+
+def serve_tcp(port: int) -> socket.socket:
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    server.bind(("127.0.0.1", port))
+    server.listen(1)
+    return server
