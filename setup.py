@@ -18,7 +18,8 @@ def mujoco_include() -> str:
     return os.path.join(os.path.dirname(mujoco.__file__), "include")
 
 
-sources = sorted(glob.glob("twin/csrc/firmware/line_follower.c") + glob.glob("twin/csrc/sim/*.c"))
+sources = sorted(glob.glob("twin/csrc/firmware/line_follower.c") + glob.glob("twin/csrc/firmware/lf_wire.c")
+                 + glob.glob("twin/csrc/sim/*.c"))
 
 setup(
     ext_modules=[

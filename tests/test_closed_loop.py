@@ -199,3 +199,13 @@ def test_c_lap_progress_equals_track_locate():
         core.lib.lf_locate(ptr, len(track.centre), track.length_m, x, y, ctypes.byref(seg), ctypes.byref(s_c), ctypes.byref(off_c))
         ds = (s_c.value - ref_s[k] + track.length_m / 2) % track.length_m - track.length_m / 2
         assert abs(ds) < 1e-9 and abs(off_c.value - ref_off[k]) < 1e-12, k
+
+
+def test_a_field_changed_on_the_twin_is_simulated_by_the_next_laps():
+    """The batch of a twin is reused between calls; a model-field change in between must reach it."""
+    t = DigitalTwin()
+    first = run_laps(t, [{}], keep_traces=False)[0]
+    t.set("motion.mu", 0.22)  # the robot slips in the tight bends: a slower lap
+    slow = run_laps(t, [{}], keep_traces=False)[0]
+    assert slow.lap_time_s > first.lap_time_s + 0.1
+    assert slow.lap_time_s == run_laps(DigitalTwin(), [{"motion.mu": 0.22}], keep_traces=False)[0].lap_time_s

@@ -160,7 +160,8 @@ def test_firmware_builds_for_atmega328p(tmp_path, capsys):
     elf = tmp_path / "line_follower.elf"
     subprocess.run(
         [avr_gcc, "-mmcu=atmega328p", "-Os", "-std=c99", "-Wall", "-Wextra", "-Werror", "-o", str(elf),
-         os.path.join(FIRMWARE, "avr_main.c"), os.path.join(FIRMWARE, "line_follower.c"), "-lm"],
+         os.path.join(FIRMWARE, "avr_main.c"), os.path.join(FIRMWARE, "line_follower.c"),
+         os.path.join(FIRMWARE, "lf_wire.c"), "-lm"],
         check=True, capture_output=True, text=True,
     )
     out = subprocess.run([avr_size, "-A", str(elf)], check=True, capture_output=True, text=True).stdout
@@ -170,3 +171,24 @@ def test_firmware_builds_for_atmega328p(tmp_path, capsys):
         print(f"\nfirmware on the ATmega328P (avr-gcc -Os): flash {flash} B of 32768, RAM {ram} B of 2048")
     assert flash < 32768 - 512  # room left for the 512 B Arduino bootloader
     assert ram < 2048 // 2  # half the RAM stays for the stack and the drivers
+
+
+def test_c_wire_lines_equal_the_python_encoding():
+    """The firmware's telemetry lines (lf_wire.c) are byte for byte what twin.wire encodes and decodes."""
+    from twin.wire import Event, Header, Sample, decode, encode
+
+    buf = ctypes.create_string_buffer(96)
+    rng = random.Random(2)
+    for _ in range(500):
+        t_ms, pos, seen = rng.randrange(0, 2**32 - 1), rng.randrange(0, 7001), rng.randrange(2)
+        wl, wr = rng.randrange(-20000, 20000), rng.randrange(-20000, 20000)
+        n = lib.lf_wire_sample(buf, ctypes.c_uint32(t_ms), pos, seen, wl, wr)
+        line = buf.raw[:n].decode()
+        assert line == encode(Sample(t_ms / 1000, pos, seen, wl / 100, wr / 100))
+        assert decode(line) == Sample(t_ms / 1000, pos, seen, wl / 100, wr / 100)
+    n = lib.lf_wire_header(buf, 8, 5000, 2)
+    assert buf.raw[:n].decode() == encode(Header(8, 0.005, 2))
+    n = lib.lf_wire_lap(buf, ctypes.c_uint32(7310), ctypes.c_uint32(7310))
+    assert buf.raw[:n].decode() == encode(Event(7.31, "LAP", lap_time_s=7.31))
+    n = lib.lf_wire_start(buf, ctypes.c_uint32(0))
+    assert buf.raw[:n].decode() == encode(Event(0.0, "START"))

@@ -258,6 +258,9 @@ def cmd_live(args: argparse.Namespace) -> int:
     import time
 
     from tuner.live import LinkStats, LiveOptions, LiveTwin, replay_log, run_link
+
+    if args.replay and not os.path.isfile(args.replay):
+        raise TunerError(f"{args.replay}: no such telemetry log")
     from twin.run import _twin
 
     args.track = args.track or "default"
@@ -283,8 +286,21 @@ def cmd_live(args: argparse.Namespace) -> int:
         if rec is not None:
             _log_live_lap(rec, e, options.address)
 
-    live = LiveTwin(twin, options, state, on_lap)
     stats = LinkStats()
+    if args.replay:
+        live = LiveTwin(twin, options, None, on_lap)
+        replay_log(args.replay, live, stats, realign=True)
+        live.finish()
+        summary = {"laps": len(live.laps), "lines": stats.lines, "corrupted": stats.corrupted,
+                   "value": {options.address: twin.space.get(options.address)}, "alignments": live.alignments,
+                   "replayed": os.path.abspath(args.replay)}
+        print(json.dumps(summary, default=str) if args.json else
+              f"replayed {len(live.laps)} laps ({stats.corrupted} corrupted lines); "
+              f"{options.address} = {twin.space.get(options.address):.5g}")
+        return 0
+    if not args.port:
+        raise TunerError("live: give --port PATH_OR_URL (or --replay FILE)")
+    live = LiveTwin(twin, options, state, on_lap)
     if os.path.isfile(args.log):
         replay_log(args.log, live, stats)
         print(f"resumed {len(live.laps)} laps from {args.log}", flush=True)
@@ -332,8 +348,13 @@ def _log_live_lap(rec, e: dict, address: str) -> None:
     if e["discrepancy"] is not None:
         rec.log("live/discrepancy", rr.Scalars(e["discrepancy"]))
     rec.log(f"live/{address}", rr.Scalars(e[address]))
-    lap = e["lap_record"]
-    if len(lap.t):
-        rec.send_columns("live/robot_wheel_left", indexes=[rr.TimeColumn("lap_time", duration=lap.t)],
-                         columns=rr.Scalars.columns(scalars=lap.wl))
+    lap, twin_trace = e["lap_record"], e["twin_lap"].trace
+    series = [("robot", lap.t, lap.wl, lap.pos)]
+    if twin_trace is not None:
+        series.append(("twin", twin_trace.time_s, twin_trace.column("wheel_left_radps"), twin_trace.column("position")))
+    for who, t, wl, pos in series:  # both laps on one lap-time axis: where they part is visible
+        if len(t):
+            index = [rr.TimeColumn("lap_time", duration=t)]
+            rec.send_columns(f"live/wheel_left/{who}", indexes=index, columns=rr.Scalars.columns(scalars=wl))
+            rec.send_columns(f"live/line_position/{who}", indexes=index, columns=rr.Scalars.columns(scalars=pos))
     rec.flush()

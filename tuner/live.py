@@ -129,7 +129,7 @@ class LiveTwin:
         off = entry["discrepancy"] is None or abs(entry["discrepancy"]) > self.o.threshold
         self.streak = self.streak + 1 if off else 0
         if self.on_lap:
-            self.on_lap({**entry, "lap_record": lap})
+            self.on_lap({**entry, "lap_record": lap, "twin_lap": twin_lap})
         if not replay and self.streak >= self.o.k_laps and self._thread is None:
             recent = [e["robot_lap_time_s"] for e in self.laps[-self.o.k_laps:] if e["robot_lap_time_s"]]
             if recent:
@@ -194,14 +194,21 @@ class LinkStats:
     robot_laps: int = 0
 
 
-def replay_log(path: str, live: LiveTwin, stats: LinkStats) -> None:
-    """Feed a telemetry log (wire lines) through live mode without re-aligning: the resume after a restart."""
+def replay_log(path: str, live: LiveTwin, stats: LinkStats, realign: bool = False) -> None:
+    """Feed a telemetry log (wire lines) through live mode: without re-aligning to resume after a restart,
+    or with it to replay a recorded session as if it were live."""
     with open(path, "rb") as f:
         for raw in f:
+            stats.lines += realign
             try:
-                live.feed(decode(raw), replay=True)
+                rec = decode(raw)
             except WireError:
                 stats.corrupted += 1
+                continue
+            if realign and isinstance(rec, Event) and rec.event in ("LAP", "FAIL"):
+                stats.robot_laps += 1
+                live.finish()  # as fast as the file goes, each lap sees the alignment the previous ones asked for
+            live.feed(rec, replay=not realign)
 
 
 def run_link(url: str, live: LiveTwin, log_path: str, stats: LinkStats, stop: Callable[[], bool],

@@ -135,7 +135,9 @@ def run_laps(
                 models[lap.field_key] = m
         batch.set_models([models[lap.field_key] for lap in laps])
     else:
-        batch.set_models(None)
+        # a Batch simulates a copy of the model it was made with: hand it the twin's model as it is now, so a
+        # field the twin changed since (motion.mu, motor.*) is the one simulated
+        batch.set_models(model)
     core.install_callback()
     key = np.full(nsim, model.key(START_KEY).id)
     judges = [LapJudge(twin.track, limits, keep_traces) for _ in laps]

@@ -227,7 +227,8 @@ def parser() -> argparse.ArgumentParser:
                         "or a pty path), appends every line to --log (flushed per lap), compares each lap with the "
                         "twin, and re-aligns --parameter in the background when the lap time differs by more than "
                         "--threshold for --k-laps laps. A restart resumes from the log and its state file.")
-    lv.add_argument("--port", required=True, metavar="PATH_OR_URL", help="serial device, pty path or pyserial URL")
+    lv.add_argument("--port", metavar="PATH_OR_URL", help="serial device, pty path or pyserial URL")
+    lv.add_argument("--replay", metavar="LOG", help="instead of a link: a recorded telemetry log, as fast as it reads")
     _shared_world_options(lv)
     lv.add_argument("--gains", metavar="FILE.json", help="the robot's control gains")
     lv.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="the twin's model-space parameter, repeatable")

@@ -1,0 +1,86 @@
+#include "lf_wire.h"
+
+static int put_str(char *p, const char *s) {
+  int n = 0;
+  while (s[n]) p[n] = s[n], n++;
+  return n;
+}
+
+static int put_int(char *p, int32_t v) {
+  char tmp[12];
+  int n = 0, k = 0;
+  uint32_t u = v < 0 ? (uint32_t)(-(v + 1)) + 1u : (uint32_t)v;
+  if (v < 0) p[k++] = '-';
+  do {
+    tmp[n++] = (char)('0' + u % 10u);
+    u /= 10u;
+  } while (u);
+  while (n) p[k++] = tmp[--n];
+  return k;
+}
+
+static int put_uint(char *p, uint32_t u) {
+  char tmp[12];
+  int n = 0, k = 0;
+  do {
+    tmp[n++] = (char)('0' + u % 10u);
+    u /= 10u;
+  } while (u);
+  while (n) p[k++] = tmp[--n];
+  return k;
+}
+
+/* "*CS\n" after the body buf[1..n): XOR of the bytes between '$' and '*' */
+static int finish(char *buf, int n) {
+  static const char hex[] = "0123456789ABCDEF";
+  uint8_t x = 0;
+  int i;
+  for (i = 1; i < n; i++) x ^= (uint8_t)buf[i];
+  buf[n++] = '*';
+  buf[n++] = hex[x >> 4];
+  buf[n++] = hex[x & 15];
+  buf[n++] = '\n';
+  buf[n] = 0;
+  return n;
+}
+
+int lf_wire_header(char *buf, int32_t sensors, int32_t dt_us, int32_t every) {
+  int n = put_str(buf, "$LFH,");
+  n += put_int(buf + n, LF_WIRE_VERSION);
+  buf[n++] = ',';
+  n += put_int(buf + n, sensors);
+  buf[n++] = ',';
+  n += put_int(buf + n, dt_us);
+  buf[n++] = ',';
+  n += put_int(buf + n, every);
+  return finish(buf, n);
+}
+
+int lf_wire_sample(char *buf, uint32_t t_ms, int32_t pos, int32_t seen, int32_t wl_crad, int32_t wr_crad) {
+  int n = put_str(buf, "$LFS,");
+  n += put_uint(buf + n, t_ms);
+  buf[n++] = ',';
+  n += put_int(buf + n, pos);
+  buf[n++] = ',';
+  n += put_int(buf + n, seen);
+  buf[n++] = ',';
+  n += put_int(buf + n, wl_crad);
+  buf[n++] = ',';
+  n += put_int(buf + n, wr_crad);
+  return finish(buf, n);
+}
+
+int lf_wire_start(char *buf, uint32_t t_ms) {
+  int n = put_str(buf, "$LFE,");
+  n += put_uint(buf + n, t_ms);
+  n += put_str(buf + n, ",START");
+  return finish(buf, n);
+}
+
+int lf_wire_lap(char *buf, uint32_t t_ms, uint32_t lap_ms) {
+  int n = put_str(buf, "$LFE,");
+  n += put_uint(buf + n, t_ms);
+  n += put_str(buf + n, ",LAP,");
+  n += put_uint(buf + n, lap_ms);
+  return finish(buf, n);
+}
