@@ -6,19 +6,6 @@ static int put_str(char *p, const char *s) {
   return n;
 }
 
-static int put_int(char *p, int32_t v) {
-  char tmp[12];
-  int n = 0, k = 0;
-  uint32_t u = v < 0 ? (uint32_t)(-(v + 1)) + 1u : (uint32_t)v;
-  if (v < 0) p[k++] = '-';
-  do {
-    tmp[n++] = (char)('0' + u % 10u);
-    u /= 10u;
-  } while (u);
-  while (n) p[k++] = tmp[--n];
-  return k;
-}
-
 static int put_uint(char *p, uint32_t u) {
   char tmp[12];
   int n = 0, k = 0;
@@ -28,6 +15,12 @@ static int put_uint(char *p, uint32_t u) {
   } while (u);
   while (n) p[k++] = tmp[--n];
   return k;
+}
+
+static int put_int(char *p, int32_t v) {
+  if (v >= 0) return put_uint(p, (uint32_t)v);
+  p[0] = '-';
+  return 1 + put_uint(p + 1, (uint32_t)(-(v + 1)) + 1u); /* -INT32_MIN overflows; this does not */
 }
 
 /* "*CS\n" after the body buf[1..n): XOR of the bytes between '$' and '*' */
