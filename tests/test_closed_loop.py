@@ -209,3 +209,14 @@ def test_a_field_changed_on_the_twin_is_simulated_by_the_next_laps():
     slow = run_laps(t, [{}], keep_traces=False)[0]
     assert slow.lap_time_s > first.lap_time_s + 0.1
     assert slow.lap_time_s == run_laps(DigitalTwin(), [{"motion.mu": 0.22}], keep_traces=False)[0].lap_time_s
+
+
+def test_kept_calibration_is_bit_identical_to_a_fresh_one(twin):
+    """Laps that differ only in gains reuse one calibration turn; the laps equal those of a fresh twin."""
+    variants = [{"control.kp": 18.0}, {"control.kp": 22.0, "control.v_max": 0.7}]
+    run_laps(twin, [{}])  # the twin has calibrated already
+    kept = run_laps(twin, variants, seed=0)
+    fresh = [run_laps(DigitalTwin(), [v], seed=0)[0] for v in variants]
+    for a, b in zip(kept, fresh):
+        assert np.array_equal(a.trace.records, b.trace.records)
+        assert a.calibration_max_us == b.calibration_max_us

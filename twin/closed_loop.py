@@ -7,13 +7,16 @@ Python only sets simulations up, moves them between phases and drains the trace 
 and each one is bit-identical to running it alone: its state never mixes with another's.
 
 Phases of a lap, as on the real robot: calibrate by turning in place over the start line (Eq. 8's min and
-max), then be put back on the start line, and follow the line until the lap ends.
+max), then be put back on the start line, and follow the line until the lap ends. Laps that differ only in
+their gains calibrate identically, so each distinct calibration is simulated once per build of the twin and
+reused (bit-identical to simulating it again).
 """
 
 from __future__ import annotations
 
 import copy
 import ctypes
+import dataclasses
 import logging
 from typing import Callable, Mapping, Sequence
 
@@ -142,26 +145,48 @@ def run_laps(
     key = np.full(nsim, model.key(START_KEY).id)
     judges = [LapJudge(twin.track, limits, keep_traces) for _ in laps]
 
-    # --- calibration: turn in place over the start line
+    # --- calibration: turn in place over the start line. Laps that differ only in gains calibrate identically
+    # (the turn does not use them), so each distinct calibration runs once and is kept on the twin.
+    done = _calibrations(twin)
+    cal_keys = [_calibration_key(lap, seed) for lap in laps]
+    steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]
     batch.reset(keyframe=key, stage=mujoco.mjtStage.mjSTAGE_NONE)
     userdata = batch.userdata  # (nsim, nuserdata), live view of the state rows
     sims = [_setup(userdata[i], model, twin, lap.params, lap.sensor, seed) for i, lap in enumerate(laps)]
-    steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]
-    cal_steps = max((calibration_ticks(lap.params) + 2) * k for lap, k in zip(laps, steps))
-    failed = _step(batch, np.arange(nsim), cal_steps, judges)
-    saved = userdata.copy()
-    cal = [(list(s.fw.cal_min[: s.nsensor]), list(s.fw.cal_max[: s.nsensor])) for s in sims]
+    todo: dict[tuple, int] = {}
+    for i, k in enumerate(cal_keys):
+        if k not in done and k not in todo:
+            todo[k] = i
+    if todo:
+        ids = np.array(sorted(todo.values()))
+        cal_steps = max((calibration_ticks(laps[i].params) + 2) * steps[i] for i in ids)
+        failed = _step(batch, ids, cal_steps, judges)
+        for k, i in todo.items():
+            s = sims[i]
+            if i in failed:
+                continue  # not kept: every lap with this calibration fails below
+            if s.fw.mode != IDLE:
+                raise TwinError(f"lap {i}: calibration did not finish in {cal_steps} steps")
+            done[k] = (tuple(s.fw.cal_min[: s.nsensor]), tuple(s.fw.cal_max[: s.nsensor]), int(s.rng))
+        batch.reset(keyframe=key, stage=mujoco.mjtStage.mjSTAGE_NONE)  # the turn moved them: back to the start
+        sims = [_setup(userdata[i], model, twin, lap.params, lap.sensor, seed) for i, lap in enumerate(laps)]
 
-    # --- the lap: back on the start line, calibration kept
-    batch.reset(keyframe=key, stage=mujoco.mjtStage.mjSTAGE_NONE)
-    userdata[:] = saved
+    # --- the lap: on the start line, with the calibration (min, max and the noise generator's state) it made
+    cal = []
     for i, (sim, lap) in enumerate(zip(sims, laps)):
-        if sim.fw.mode != IDLE and i not in failed:
-            raise TwinError(f"lap {i}: calibration did not finish in {cal_steps} steps")
-        lo, hi = np.array(cal[i][0]), np.array(cal[i][1])
-        if np.min(hi - lo) < limits.min_calibration_range_us:
-            bad = int(np.argmin(hi - lo))
-            judges[i].fail(CALIBRATION, f"sensor {bad} spans only {hi[bad] - lo[bad]} µs after the calibration turn "
+        if cal_keys[i] not in done:
+            judges[i].fail(DIVERGED, "the calibration turn diverged", 0.0, 0.0)
+            cal.append(([], []))
+            continue
+        lo, hi, rng = done[cal_keys[i]]
+        for j, (a, b) in enumerate(zip(lo, hi)):
+            sim.fw.cal_min[j], sim.fw.cal_max[j] = a, b
+        sim.rng = rng
+        cal.append((list(lo), list(hi)))
+        spans = np.array(hi) - np.array(lo)
+        if np.min(spans) < limits.min_calibration_range_us:
+            bad = int(np.argmin(spans))
+            judges[i].fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn "
                            "(turn further: control.cal_sweep, control.cal_duty)", 0.0, 0.0)
         _start_phase(sim, RUN)
     consumed = np.zeros(nsim, dtype=np.int64)
@@ -193,10 +218,26 @@ def run_laps(
     return [j.result(lap.params.count, *cal[i], lap.values) for i, (j, lap) in enumerate(zip(judges, laps))]
 
 
+def _calibration_key(lap: "Variant", seed: int) -> tuple:
+    """Everything the calibration turn depends on: physics fields, sensor model, geometry and turn settings,
+    the seed. Not the gains: the turn does not use them."""
+    turn = dataclasses.replace(lap.params, v_max=0.0, k_b=0.0, k_p=0.0, k_i=0.0, k_d=0.0, accel_max=0.0,
+                               integral_limit=0.0)
+    return lap.field_key, dataclasses.astuple(lap.sensor), turn, int(seed)
+
+
+def _calibrations(twin: DigitalTwin) -> dict:
+    """Calibrations made on the twin's current build: {key: (min, max, RNG state after the turn)}."""
+    store = twin.__dict__.setdefault("_calibrations", {"build": None, "done": {}})
+    if store["build"] != twin.rebuilds:  # a rebuilt robot or track calibrates anew
+        store["build"], store["done"] = twin.rebuilds, {}
+    return store["done"]
+
+
 def _batch(twin: DigitalTwin, model: mujoco.MjModel, nsim: int, nthread: int) -> mujoco.batch.Batch:
     """A batch for this model and size, made once per twin: making one costs ~10 ms, a lap ~200 ms."""
     cache = twin.__dict__.setdefault("_batches", {})
-    key = (id(model), nsim, nthread)
+    key = (twin.rebuilds, nsim, nthread)  # the build count, not id(model): ids are reused after a rebuild
     if key not in cache:
         cache.clear()  # a rebuilt model makes the old batches useless
         cache[key] = (model, mujoco.batch.Batch(model, nsim=nsim, nthread=nthread))
