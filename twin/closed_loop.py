@@ -107,6 +107,7 @@ def run_laps(
     nthread: int = 0,
     keep_traces: bool = True,
     on_chunk: Callable[[float, int], None] | None = None,
+    reuse_calibration: bool = True,
 ) -> list[LapResult]:
     """Run one lap per variant, all at once, and return their results in order.
 
@@ -119,6 +120,8 @@ def run_laps(
       nthread: threads of the batch, 0 for all cores. Results do not depend on it.
       keep_traces: keep each lap's per-tick trace (memory: ~400 B per tick per lap).
       on_chunk: called after each batch call with (simulated seconds of the slowest lap, laps still running).
+      reuse_calibration: use a calibration turn this twin already simulated (bit-identical); False simulates
+        every distinct turn again, e.g. to time it.
     """
     if not variants:
         return []
@@ -147,7 +150,7 @@ def run_laps(
 
     # --- calibration: turn in place over the start line. Laps that differ only in gains calibrate identically
     # (the turn does not use them), so each distinct calibration runs once and is kept on the twin.
-    done = _calibrations(twin)
+    done = _calibrations(twin) if reuse_calibration else {}
     cal_keys = [_calibration_key(lap, seed) for lap in laps]
     steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]
     batch.reset(keyframe=key, stage=mujoco.mjtStage.mjSTAGE_NONE)
