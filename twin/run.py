@@ -142,9 +142,19 @@ def cmd_graph(args: argparse.Namespace) -> int:
 
 
 def _shared_world_options(p: argparse.ArgumentParser, track_default: str | None = "default") -> None:
-    p.add_argument("--track", default=track_default, help="built-in track name or a PNG (default: default)")
+    p.add_argument("--track", default=track_default,
+                   help="built-in track name (default, oval, circle, chicane) or a PNG (default: default)")
     p.add_argument("--metres-per-pixel", type=float, help="scale of a PNG track without DPI metadata [m]")
     p.add_argument("--robot", help="a diff-drive URDF instead of the generated robot")
+
+
+def _robot_options(p: argparse.ArgumentParser, gains: str, set_help: str, seed: int, seed_help: str,
+                   track_default: str | None = "default") -> None:
+    """The options every command that runs laps shares: world, gains, parameters, noise seed."""
+    _shared_world_options(p, track_default)
+    p.add_argument("--gains", metavar="FILE.json", help=gains)
+    p.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help=set_help)
+    p.add_argument("--seed", type=int, default=seed, help=seed_help)
 
 
 def _lazy(module: str, name: str):
@@ -163,13 +173,9 @@ def parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     lap = sub.add_parser("lap", help="calibrate and run one closed-loop lap; print lap time and a summary",
                          description=cmd_lap.__doc__)
-    lap.add_argument("--track", default="default", help="built-in track name (default, oval, circle, chicane) or a PNG")
-    lap.add_argument("--metres-per-pixel", type=float, help="scale of a PNG track without DPI metadata [m]")
-    lap.add_argument("--robot", help="a diff-drive URDF instead of the generated robot")
-    lap.add_argument("--gains", metavar="FILE.json", help="control gains, e.g. written by python -m tuner --out")
-    lap.add_argument("--set", action="append", metavar="ADDRESS=VALUE",
-                     help="any model-space parameter (see 'graph'), repeatable; applied after --gains")
-    lap.add_argument("--seed", type=int, default=0, help="sensor-noise seed (same seed, bit-identical lap)")
+    _robot_options(lap, "control gains, e.g. written by python -m tuner --out",
+                   "any model-space parameter (see 'graph'), repeatable; applied after --gains",
+                   0, "sensor-noise seed (same seed, bit-identical lap)")
     lap.add_argument("--timeout", type=float, default=60.0, help="give up after this many simulated seconds")
     lap.add_argument("--json", action="store_true", help="print one JSON object")
     lap.add_argument("--save", metavar="RUN.rrd", help="write a rerun recording of the lap")
@@ -187,10 +193,8 @@ def parser() -> argparse.ArgumentParser:
                     help="what to align, repeatable with --telemetry (default motion.mu; with --telemetry motion.mu "
                          "and motor.R_M)")
     al.add_argument("--bounds", action="append", metavar="ADDRESS=LO,HI", help="search range of a parameter")
-    _shared_world_options(al, track_default=None)
-    al.add_argument("--gains", metavar="FILE.json", help="the robot's control gains (default: the twin's)")
-    al.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="model-space parameter, repeatable")
-    al.add_argument("--seed", type=int, default=0, help="sensor-noise seed")
+    _robot_options(al, "the robot's control gains (default: the twin's)", "model-space parameter, repeatable",
+                   0, "sensor-noise seed", track_default=None)
     al.add_argument("--json", action="store_true", help="print one JSON object")
     al.add_argument("--save", metavar="ALIGN.rrd", help="rerun recording of the value and lap time per lap")
     al.add_argument("-v", "--verbose", action="store_true")
@@ -198,10 +202,8 @@ def parser() -> argparse.ArgumentParser:
     rc = sub.add_parser("record", help="run one lap and write it as robot telemetry (lf-telemetry JSON Lines)",
                         description="A stand-in for the physical robot's log: one lap of a twin whose hidden "
                         "parameters you set with --set, its own noise seed, written as telemetry for align --telemetry.")
-    _shared_world_options(rc)
-    rc.add_argument("--gains", metavar="FILE.json", help="the robot's control gains")
-    rc.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="hidden model-space parameter, repeatable")
-    rc.add_argument("--seed", type=int, default=7, help="the robot's noise seed (differs from the twin's 0)")
+    _robot_options(rc, "the robot's control gains", "hidden model-space parameter, repeatable",
+                   7, "the robot's noise seed (differs from the twin's 0)")
     rc.add_argument("--every", type=int, default=2, help="one sample every N control ticks")
     rc.add_argument("--out", required=True, metavar="LAP.jsonl", help="where to write the telemetry")
     rc.add_argument("-v", "--verbose", action="store_true")
@@ -210,10 +212,8 @@ def parser() -> argparse.ArgumentParser:
                         description="A twin with hidden parameters (--set) and its own noise seed drives lap after "
                         "lap and streams its telemetry (twin.wire) at real-time pace on a pseudo-terminal it creates "
                         "(the path is printed) or on 127.0.0.1:--tcp PORT.")
-    _shared_world_options(em)
-    em.add_argument("--gains", metavar="FILE.json", help="the robot's control gains")
-    em.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="hidden model-space parameter, repeatable")
-    em.add_argument("--seed", type=int, default=7, help="the robot's noise seed (lap k uses seed + k)")
+    _robot_options(em, "the robot's control gains", "hidden model-space parameter, repeatable",
+                   7, "the robot's noise seed (lap k uses seed + k)")
     em.add_argument("--speed", type=float, default=1.0, help="faster than real time by this factor")
     em.add_argument("--every", type=int, default=2, help="one sample line every N control ticks")
     em.add_argument("--laps", type=int, help="stop after this many laps (default: run until stopped)")
@@ -229,14 +229,12 @@ def parser() -> argparse.ArgumentParser:
                         "--threshold for --k-laps laps. A restart resumes from the log and its state file.")
     lv.add_argument("--port", metavar="PATH_OR_URL", help="serial device, pty path or pyserial URL")
     lv.add_argument("--replay", metavar="LOG", help="instead of a link: a recorded telemetry log, as fast as it reads")
-    _shared_world_options(lv)
-    lv.add_argument("--gains", metavar="FILE.json", help="the robot's control gains")
-    lv.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="the twin's model-space parameter, repeatable")
+    _robot_options(lv, "the robot's control gains", "the twin's model-space parameter, repeatable",
+                   0, "the twin's noise seed")
     lv.add_argument("--parameter", action="append", metavar="ADDRESS", help="what re-alignment adjusts (default motion.mu)")
     lv.add_argument("--bounds", action="append", metavar="ADDRESS=LO,HI", help="its search range")
     lv.add_argument("--threshold", type=float, default=0.005, help="relative lap-time difference that counts [-]")
     lv.add_argument("--k-laps", type=int, default=2, help="laps in a row above the threshold before re-aligning")
-    lv.add_argument("--seed", type=int, default=0, help="the twin's noise seed")
     lv.add_argument("--log", default="live_telemetry.log", help="telemetry log: every received line")
     lv.add_argument("--state", help="state file (default: <log>.state.json)")
     lv.add_argument("--laps", type=int, help="stop after this many robot laps")
