@@ -68,3 +68,13 @@ def test_design_bad_input_is_one_line_and_exit_2(args, needle, capsys, tmp_path)
     assert main(["design", *args, "--out-dir", str(tmp_path / "x"), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0]
+
+
+def test_json_output_has_null_for_missing_figures():
+    """A design that builds but finishes no lap has no median: its JSON says null, and strings stay intact."""
+    from tuner.jsonable import json_safe
+
+    out = json.dumps(json_safe({"median": float("nan"), "se": float("inf"), "note": "NaN-free Infinity",
+                                "laps": [1.0, float("-inf")], "ci": (0.5, float("nan"))}), allow_nan=False)
+    assert json.loads(out) == {"median": None, "se": None, "note": "NaN-free Infinity", "laps": [1.0, None],
+                               "ci": [0.5, None]}

@@ -14,6 +14,7 @@ import rerun.blueprint as rrb
 
 from mjcf.cli import parse_assignments
 from tuner.align import align_lap_time
+from tuner.jsonable import json_safe
 from tuner.space import TunerError, parse_bounds
 from twin.recording import recording_file
 
@@ -132,7 +133,7 @@ def cmd_design(args: argparse.Namespace) -> int:
                             "laps_completed": len(r.lap_times_s), "mean_cross_track_m": r.mean_cross_track_m if r.ok else None,
                             "pareto": on, "gains": r.gains} for r, on in zip(results, front)]}
     if args.json:
-        print(json.dumps(summary, allow_nan=False, default=str).replace("NaN", "null"))
+        print(json.dumps(json_safe(summary), allow_nan=False, default=str))
     else:
         for r, on in zip(results, front):
             if r.ok:
@@ -181,7 +182,7 @@ def _align_telemetry(args: argparse.Namespace) -> int:
         "correlation": r.correlation,
     }
     if args.json:
-        print(json.dumps(summary, default=str).replace("NaN", "null").replace("Infinity", "null"))
+        print(json.dumps(json_safe(summary), allow_nan=False, default=str))
     else:
         for p in r.parameters:
             ci = f"95 % [{p.ci95[0]:.5g}, {p.ci95[1]:.5g}]" if np.isfinite(p.stderr) else "no interval"

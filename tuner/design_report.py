@@ -21,18 +21,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from tuner.design import DesignResult  # noqa: E402
+from tuner.jsonable import json_safe  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
-
-
-def _clean(obj):
-    """JSON has no NaN: missing figures become null."""
-    if isinstance(obj, float):
-        return None if math.isnan(obj) else obj
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    return obj
 
 
 def slug(r: DesignResult) -> str:
@@ -111,10 +101,10 @@ def write_report(out_dir: str, results: Sequence[DesignResult], front: Sequence[
         for r in results:
             if r.ok:
                 with open(os.path.join(tmp, "gains", f"{slug(r)}.json"), "w") as f:
-                    json.dump(_clean({"gains": r.gains, "design": r.design, "track": meta["track"],
+                    json.dump(json_safe({"gains": r.gains, "design": r.design, "track": meta["track"],
                                       "median_lap_time_s": r.median_s}), f, indent=2, allow_nan=False)
         with open(os.path.join(tmp, "designs.json"), "w") as f:
-            json.dump(_clean({**meta, "trends": list(trends),
+            json.dump(json_safe({**meta, "trends": list(trends),
                               "designs": [{**r.__dict__, "median_lap_time_s": r.median_s, "pareto": on, "label": r.label}
                                           for r, on in zip(results, front)]}), f, indent=2, allow_nan=False)
         if os.path.isdir(out_dir):
