@@ -7,8 +7,13 @@ import math
 
 import numpy as np
 
+from lf_common.errors import LineFollowerError
 
-class SensorError(ValueError):
+
+MAX_SENSORS = 16  # the firmware's arrays (LF_MAX_SENSORS in twin/csrc/firmware/line_follower.h)
+
+
+class SensorError(LineFollowerError, ValueError):
     """A sensor parameter is missing, not finite or out of range."""
 
 
@@ -25,8 +30,8 @@ class SensorArray:
     pitch: float = 0.009525
 
     def __post_init__(self) -> None:
-        if not isinstance(self.count, int) or not 2 <= self.count <= 32:
-            raise SensorError(f"sensor.count: must be an integer in [2, 32], got {self.count!r}")
+        if not isinstance(self.count, int) or not 2 <= self.count <= MAX_SENSORS:
+            raise SensorError(f"sensor.count: must be an integer in [2, {MAX_SENSORS}], got {self.count!r}")
         if not (isinstance(self.pitch, (int, float)) and math.isfinite(self.pitch) and 0.001 <= self.pitch <= 0.05):
             raise SensorError(f"sensor.pitch: must be in [0.001, 0.05] m, got {self.pitch!r}")
 

@@ -12,6 +12,7 @@ import os
 import sys
 import tempfile
 
+from lf_common.files import output_dir
 from mjcf import track as track_mod
 from mjcf.cad import write_robot
 from mjcf.cli import parse_assignments, run_guarded
@@ -37,7 +38,9 @@ def _design(assignments: dict) -> RobotDesign:
 
 def cmd_generate(args: argparse.Namespace) -> int:
     design = _design(parse_assignments(args.set))
-    urdf = write_robot(design, args.out)
+    with output_dir(args.out, "robot folder") as tmp:
+        write_robot(design, tmp)
+    urdf = os.path.join(os.path.abspath(args.out), "robot.urdf")
     if args.json:
         print(json.dumps({"urdf": urdf, "design": design.__dict__}))
     else:

@@ -11,8 +11,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import shutil
-import tempfile
 
 import numpy as np
 import trimesh
@@ -129,31 +127,18 @@ def robot_description(design: RobotDesign, mesh_dir: str = "meshes") -> Robot:
     return Robot(name="line_follower", links=links, joints=joints, materials=[grey, black, pcb])
 
 
-def write_robot(design: RobotDesign, out_dir: str) -> str:
-    """Write ``robot.urdf`` and ``meshes/*.stl`` into ``out_dir`` atomically; returns the URDF path.
+def write_robot(design: RobotDesign, folder: str) -> str:
+    """Write ``robot.urdf`` and ``meshes/*.stl`` into ``folder``; returns the URDF path.
 
-    Everything is written to a temporary sibling directory first and renamed into place, so a reader
-    never sees a half-written robot.
+    ``folder`` is a fresh private folder that the caller publishes whole (``lf_common.files.output_dir`` for a
+    user's folder, ``lf_common.cache.cached_folder`` for the cache): nothing already there is replaced.
     """
-    out_dir = os.path.abspath(out_dir)
-    parent = os.path.dirname(out_dir)
-    os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".robot-", dir=parent)
-    try:
-        os.makedirs(os.path.join(tmp, "meshes"))
-        for part, mesh in meshes(design).items():
-            mesh.export(os.path.join(tmp, "meshes", f"{part}.stl"))
-        yourdfpy.URDF(
-            robot=robot_description(design), build_scene_graph=False, load_meshes=False,
-            filename_handler=yourdfpy.filename_handler_null,
-        ).write_xml_file(
-            os.path.join(tmp, "robot.urdf")
-        )
-        if os.path.isdir(out_dir):
-            shutil.rmtree(out_dir)
-        os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    log.info("wrote robot URDF to %s", out_dir)
-    return os.path.join(out_dir, "robot.urdf")
+    os.makedirs(os.path.join(folder, "meshes"))
+    for part, mesh in meshes(design).items():
+        mesh.export(os.path.join(folder, "meshes", f"{part}.stl"))
+    yourdfpy.URDF(
+        robot=robot_description(design), build_scene_graph=False, load_meshes=False,
+        filename_handler=yourdfpy.filename_handler_null,
+    ).write_xml_file(os.path.join(folder, "robot.urdf"))
+    log.info("wrote robot URDF to %s", folder)
+    return os.path.join(folder, "robot.urdf")

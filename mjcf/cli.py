@@ -8,11 +8,10 @@ import logging
 import sys
 from typing import Callable, Sequence
 
+from lf_common.errors import LineFollowerError
 from mjcf.errors import MjcfError
-from motors import MotorError
-from line_sensor.geometry import SensorError
 
-USER_ERRORS: tuple[type[BaseException], ...] = (MjcfError, MotorError, SensorError)
+USER_ERRORS: tuple[type[BaseException], ...] = (LineFollowerError,)
 EXIT_BAD_INPUT = 2
 
 

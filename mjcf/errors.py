@@ -3,8 +3,10 @@
 import dataclasses
 import math
 
+from lf_common.errors import LineFollowerError
 
-class MjcfError(ValueError):
+
+class MjcfError(LineFollowerError, ValueError):
     """Bad input to the CAD, track or URDF → MJCF models; the message names the input and the fault."""
 
 

@@ -18,12 +18,12 @@ import dataclasses
 import math
 import os
 import shutil
-import tempfile
 
 import mujoco
 import numpy as np
 from PIL import Image
 
+from lf_common.files import MJCF_MARKER, atomic_file, check_output_dir, check_output_file, first_line_is_ours, output_dir
 from mjcf.errors import MjcfError, check_positive_fields
 from mjcf.robot_config import RobotConfig
 from mjcf.track import FloorTexture, Pose2D
@@ -166,37 +166,27 @@ def compile_world(spec: mujoco.MjSpec, what: str = "world") -> mujoco.MjModel:
 def save_xml(spec: mujoco.MjSpec, out_path: str) -> str:
     """Write the spec as MJCF with its meshes and textures copied to ``<stem>_assets/`` beside it.
 
-    Written atomically: the assets folder and the XML appear complete or not at all. Returns the XML path.
+    Replaces only an MJCF file and an assets folder that this program wrote (``lf_common.files``); both are
+    checked before anything is written, built under temporary names, and renamed into place (assets first).
+    Returns the XML path.
     """
-    out_path = os.path.abspath(out_path)
-    out_dir = os.path.dirname(out_path)
-    stem = os.path.splitext(os.path.basename(out_path))[0]
+    full = check_output_file(out_path, first_line_is_ours, "MJCF file")
+    stem = os.path.splitext(os.path.basename(full))[0]
     assets = f"{stem}_assets"
-    os.makedirs(out_dir, exist_ok=True)
-    tmp_assets = tempfile.mkdtemp(prefix=f".{stem}-", dir=out_dir)
+    check_output_dir(os.path.join(os.path.dirname(full), assets), "MJCF assets folder")
     copy = spec.copy()
-    try:
-        for item in list(copy.meshes) + list(copy.textures):
-            if not item.file:
-                continue
-            base = os.path.basename(item.file)
-            shutil.copyfile(item.file, os.path.join(tmp_assets, base))
-            item.file = os.path.join(tmp_assets, base)
-        try:
-            xml = copy.to_xml()
-        except Exception as e:
-            raise MjcfError(f"{out_path}: cannot write MJCF ({e})") from None
-        # to_xml reads the assets, so they pointed at the temporary folder; point them at the final one
-        xml = xml.replace(f'"{tmp_assets}/', f'"{assets}/')
-        tmp_xml = f"{out_path}.{os.getpid()}.tmp"
-        with open(tmp_xml, "w") as f:
-            f.write(xml)
-        final_assets = os.path.join(out_dir, assets)
-        if os.path.isdir(final_assets):
-            shutil.rmtree(final_assets)
-        os.replace(tmp_assets, final_assets)
-        os.replace(tmp_xml, out_path)
-    except BaseException:
-        shutil.rmtree(tmp_assets, ignore_errors=True)
-        raise
-    return out_path
+    with atomic_file(out_path, first_line_is_ours, "MJCF file") as f:
+        with output_dir(os.path.join(os.path.dirname(full), assets), "MJCF assets folder") as tmp_assets:
+            for item in list(copy.meshes) + list(copy.textures):
+                if not item.file:
+                    continue
+                base = os.path.basename(item.file)
+                shutil.copyfile(item.file, os.path.join(tmp_assets, base))
+                item.file = os.path.join(tmp_assets, base)
+            try:
+                xml = copy.to_xml()
+            except Exception as e:  # MuJoCo raises plain errors for what it cannot write
+                raise MjcfError(f"{out_path}: cannot write MJCF ({str(e).splitlines()[0]})") from None
+            # to_xml reads the assets, so they pointed at the temporary folder; point them at the final one
+            f.write(MJCF_MARKER + "\n" + xml.replace(f'"{tmp_assets}/', f'"{assets}/'))
+    return full

@@ -5,8 +5,10 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from lf_common.errors import LineFollowerError
 
-class MotorError(ValueError):
+
+class MotorError(LineFollowerError, ValueError):
     """A motor parameter is missing, not finite or out of range."""
 
 

@@ -8,6 +8,7 @@ import pytest
 import trimesh
 import yourdfpy
 
+from lf_common.files import output_dir
 from mjcf import MjcfError, RobotDesign
 from mjcf.cad import _inertial, write_robot
 
@@ -31,10 +32,13 @@ def test_urdf_has_stated_masses_and_geometric_inertias(tmp_path):
         assert os.path.isfile(tmp_path / "robot" / "meshes" / f"{part}.stl")
 
 
-def test_write_is_atomic_and_leaves_no_temporaries(tmp_path):
-    write_robot(RobotDesign(), str(tmp_path / "robot"))
-    write_robot(RobotDesign(L=0.05), str(tmp_path / "robot"))  # overwrite
+def test_rewriting_our_robot_folder_is_atomic_and_leaves_no_temporaries(tmp_path):
+    for design in (RobotDesign(), RobotDesign(L=0.05)):  # the second replaces the first: it is ours
+        with output_dir(str(tmp_path / "robot")) as tmp:
+            write_robot(design, tmp)
     assert sorted(os.listdir(tmp_path)) == ["robot"]
+    urdf = yourdfpy.URDF.load(str(tmp_path / "robot" / "robot.urdf"), build_scene_graph=False, load_meshes=False)
+    assert {j.name: j for j in urdf.robot.joints}["left_wheel_joint"].origin[1, 3] == pytest.approx(0.05)
 
 
 @pytest.mark.parametrize("field,value,match", [

@@ -39,6 +39,7 @@ def test_inertials_are_kept_exactly(tmp_path):
 def test_saved_xml_reloads_with_same_masses_inertias_and_axes(tmp_path):
     twin = DigitalTwin(track="oval")
     model = twin.model()
+    (tmp_path / "out").mkdir()
     out = save_xml(twin.spec(), str(tmp_path / "out" / "world.xml"))
     assert os.path.isfile(tmp_path / "out" / "world_assets" / os.path.basename(twin.spec().textures[0].file))
     reloaded = mujoco.MjModel.from_xml_path(out)

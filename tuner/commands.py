@@ -12,6 +12,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from lf_common.files import check_output_dir
 from mjcf.cli import parse_assignments
 from tuner.align import align_lap_time
 from tuner.jsonable import json_safe
@@ -101,6 +102,7 @@ def cmd_design(args: argparse.Namespace) -> int:
 
     if args.laps < 1 or args.max_iter < 1 or args.workers < 0:
         raise TunerError("--laps and --max-iter must be >= 1, --workers >= 0")
+    check_output_dir(args.out_dir, "design study folder")  # before any work: refused now, not after the study
     params = _grid_params(args.param)
     space = default_space()
     for address in params:

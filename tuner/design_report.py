@@ -1,7 +1,8 @@
 """What a design study writes: lap-time distributions (box plot), the Pareto view, a table, tuned gains.
 
-All files go to a temporary folder that replaces the output folder when complete, so a crash leaves either
-the old results or the new ones, never a mixture.
+All files go to a temporary folder that replaces the output folder when complete (``lf_common.files.output_dir``),
+so a crash leaves either the old results or the new ones, never a mixture; a folder holding anything this
+program did not write is never replaced.
 """
 
 from __future__ import annotations
@@ -10,8 +11,6 @@ import csv
 import json
 import math
 import os
-import shutil
-import tempfile
 from typing import Sequence
 
 import matplotlib
@@ -20,9 +19,9 @@ matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from lf_common.files import GENERATOR, output_dir  # noqa: E402
 from tuner.design import DesignResult  # noqa: E402
 from tuner.jsonable import json_safe  # noqa: E402
-from twin.errors import TwinError  # noqa: E402
 
 
 def slug(r: DesignResult) -> str:
@@ -73,14 +72,7 @@ def pareto_chart(path: str, results: Sequence[DesignResult], front: Sequence[boo
 def write_report(out_dir: str, results: Sequence[DesignResult], front: Sequence[bool], trends: Sequence[str],
                  meta: dict) -> dict[str, str]:
     """Write charts, table and gains to ``out_dir`` (replaced as a whole); returns {what: path}."""
-    out_dir = os.path.abspath(out_dir)
-    parent = os.path.dirname(out_dir)
-    try:
-        os.makedirs(parent, exist_ok=True)
-        tmp = tempfile.mkdtemp(prefix=".design-", dir=parent)
-    except OSError as e:
-        raise TwinError(f"{out_dir}: cannot write the study ({e.strerror or e})") from None
-    try:
+    with output_dir(out_dir, "design study folder") as tmp:
         box_chart(os.path.join(tmp, "lap_times.png"), results, f"converged lap times ({meta['track']} track)")
         pareto_chart(os.path.join(tmp, "pareto.png"), results, front)
         names = list(results[0].design) if results else []
@@ -101,21 +93,13 @@ def write_report(out_dir: str, results: Sequence[DesignResult], front: Sequence[
         for r in results:
             if r.ok:
                 with open(os.path.join(tmp, "gains", f"{slug(r)}.json"), "w") as f:
-                    json.dump(json_safe({"gains": r.gains, "design": r.design, "track": meta["track"],
-                                      "median_lap_time_s": r.median_s}), f, indent=2, allow_nan=False)
+                    json.dump(json_safe({"generator": GENERATOR, "gains": r.gains, "design": r.design,
+                                         "track": meta["track"], "median_lap_time_s": r.median_s}), f, indent=2,
+                              allow_nan=False)
         with open(os.path.join(tmp, "designs.json"), "w") as f:
-            json.dump(json_safe({**meta, "trends": list(trends),
-                              "designs": [{**r.__dict__, "median_lap_time_s": r.median_s, "pareto": on, "label": r.label}
-                                          for r, on in zip(results, front)]}), f, indent=2, allow_nan=False)
-        if os.path.isdir(out_dir):
-            old = tempfile.mkdtemp(prefix=".design-old-", dir=parent)
-            os.replace(out_dir, os.path.join(old, "d"))
-            os.replace(tmp, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+            json.dump(json_safe({"generator": GENERATOR, **meta, "trends": list(trends),
+                                 "designs": [{**r.__dict__, "median_lap_time_s": r.median_s, "pareto": on, "label": r.label}
+                                             for r, on in zip(results, front)]}), f, indent=2, allow_nan=False)
+    out_dir = os.path.abspath(out_dir)
     return {k: os.path.join(out_dir, v) for k, v in (("chart", "lap_times.png"), ("pareto", "pareto.png"),
                                                       ("table", "designs.csv"), ("json", "designs.json"), ("gains", "gains"))}

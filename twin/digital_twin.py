@@ -2,7 +2,8 @@
 
 A CAD or environment parameter rebuilds URDF, MJCF and model; a motion or motor parameter is written
 into the compiled model's fields (so a ``mujoco.batch`` can hold different values per simulation).
-Generated robots and rasterised tracks are cached on disk by content hash.
+Generated robots and rasterised tracks are cached on disk by content hash, verified on every use
+(:mod:`lf_common.cache`); the compiled floor texture is then overwritten with the one the twin holds.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import os
 import mujoco
 import numpy as np
 
+from lf_common.cache import cache_dir, cached_folder
 from mjcf.cad import write_robot
 from mjcf.design import RobotDesign
 from mjcf.robot_config import RobotConfig
@@ -34,11 +36,6 @@ from twin.model_space import ChangeCost, ModelSpace
 from twin.models import default_space
 
 log = logging.getLogger(__name__)
-
-
-def cache_dir() -> str:
-    """Where generated robots and track textures are kept: ``$TWIN_CACHE_DIR`` or ~/.cache/line-follower-twin."""
-    return os.environ.get("TWIN_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "line-follower-twin")
 
 
 def _digest(obj) -> str:
@@ -168,23 +165,20 @@ class DigitalTwin:
         self._track_key = key
 
     def _texture_png(self) -> str:
+        """The floor texture as a PNG in the verified cache (MJCF references textures by file)."""
         tex = self.texture
-        digest = hashlib.sha256(tex.grey.tobytes()).hexdigest()[:16]
-        path = os.path.join(cache_dir(), "tracks", f"{self.track.name}-{digest}.png")
-        if not os.path.isfile(path):
-            os.makedirs(os.path.dirname(path), exist_ok=True)
-            write_texture_png(tex, path)
-        return path
+        digest = hashlib.sha256(tex.grey.tobytes() + repr((tex.origin_xy, tex.metres_per_pixel)).encode()).hexdigest()[:16]
+        folder = cached_folder(os.path.join(cache_dir(), "tracks", f"{self.track.name}-{digest}"),
+                               lambda tmp: write_texture_png(tex, os.path.join(tmp, "floor.png")), "track texture")
+        return os.path.join(folder, "floor.png")
 
     def _urdf(self) -> str:
         if self.robot_urdf is not None:
             return self.robot_urdf
         design = self.design()
-        out = os.path.join(cache_dir(), "robots", _digest(dataclasses.asdict(design)))
-        urdf = os.path.join(out, "robot.urdf")
-        if not os.path.isfile(urdf):
-            write_robot(design, out)
-        return urdf
+        folder = cached_folder(os.path.join(cache_dir(), "robots", _digest(dataclasses.asdict(design))),
+                               lambda tmp: write_robot(design, tmp), "generated robot")
+        return os.path.join(folder, "robot.urdf")
 
     def spec(self) -> mujoco.MjSpec:
         """The world's spec (built if needed), e.g. to save it as MJCF."""
@@ -204,6 +198,7 @@ class DigitalTwin:
             spec.nuserdata = core.SIM_WORDS + RECORD_CAPACITY * core.RECORD_WORDS  # the C loop's state and trace
             spec.add_numeric(name=CENTRE_LINE, data=centre_line_data(self.track))  # the C loop's lap progress
             self._model = compile_world(spec, urdf)
+            _hold_texture(self._model, self.texture)
             self.sensor_distance = _sensor_distance(self._model, self.track.start_pose().yaw)
             self._spec, self.info, self._built_key = spec, info, key
             self.rebuilds += 1
@@ -221,6 +216,19 @@ def centre_line_data(track: Track) -> np.ndarray:
 
 
 RECORD_CAPACITY = 448  # trace ring per simulation, in control ticks; the runner drains it every chunk (≤ 400 ticks)
+
+
+def _hold_texture(model: mujoco.MjModel, texture: FloorTexture) -> None:
+    """Make the compiled floor texture the one the twin holds, byte for byte: the C loop reads the model's
+    texture, and it must not depend on a file that could differ from the twin's own track."""
+    t = model.texture("track")
+    h, w = texture.grey.shape
+    if (model.tex_height[t.id], model.tex_width[t.id]) != (h, w):
+        raise TwinError(f"track texture: the compiled floor is {model.tex_width[t.id]}×{model.tex_height[t.id]} px, "
+                        f"the track {w}×{h} px")
+    n = int(model.tex_nchannel[t.id])
+    adr = int(model.tex_adr[t.id])
+    model.tex_data[adr: adr + h * w * n] = np.repeat(texture.grey[:, :, None], n, axis=2).ravel()
 
 
 def _sensor_distance(model: mujoco.MjModel, yaw: float) -> float:

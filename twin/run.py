@@ -248,7 +248,7 @@ def parser() -> argparse.ArgumentParser:
                         description="For each design: rebuild the robot, tune the gains from the same start until "
                         "convergence, run the converged gains for --laps laps with different noise seeds. Writes a "
                         "box plot, a Pareto chart, a table and per-design gains to --out-dir.")
-    de.add_argument("--param", action="append", metavar="ADDRESS=V1,V2,...",
+    de.add_argument("--grid", "--param", dest="param", action="append", metavar="ADDRESS=V1,V2,...",
                     help="a cad.* parameter and its values, repeatable (default cad.L=0.035,0.045,0.055 and "
                          "cad.S=0.04,0.06,0.08)")
     _shared_world_options(de)

@@ -1,0 +1,8 @@
+"""What every room shares and nothing else provides: the one error root (:mod:`lf_common.errors`) and the
+rules for writing outputs without losing the user's files and reading inputs within limits
+(:mod:`lf_common.files`). It imports nothing of the project, so the lowest rooms (``motors``,
+``line_sensor``) can use it too."""
+
+from lf_common.errors import InputTooLarge, LineFollowerError, OutputError
+
+__all__ = ["InputTooLarge", "LineFollowerError", "OutputError"]
