@@ -22,6 +22,7 @@ import ctypes
 import errno
 import hashlib
 import json
+import math
 import os
 import shutil
 import stat
@@ -150,9 +151,20 @@ def atomic_file(path: str, is_ours: Callable[[str], bool] | None, what: str = "o
             yield f
 
 
+def json_safe(obj):
+    """A copy of nested dicts, lists and tuples with every non-finite float replaced by None (JSON has no NaN)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    return obj
+
+
 def write_json(path: str, doc: dict, what: str = "JSON output") -> str:
     """``doc`` with ``"generator"`` first, written atomically; replaces only a JSON file of ours."""
-    text = json.dumps({"generator": GENERATOR, **doc}, indent=2, allow_nan=False) + "\n"
+    text = json.dumps(json_safe({"generator": GENERATOR, **doc}), indent=2, allow_nan=False, default=str) + "\n"
     with atomic_file(path, json_is_ours, what) as f:
         f.write(text)
     return os.path.abspath(path)

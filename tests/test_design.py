@@ -28,7 +28,7 @@ def test_pareto_front_and_trend_statements():
 
 def test_small_study_writes_charts_table_and_gains(tmp_path, capsys):
     out = tmp_path / "study"
-    code = main(["design", "--param", "cad.L=0.035,0.055", "--param", "cad.R=0.016,0", "--laps", "2",
+    code = main(["design", "--grid", "cad.L=0.035,0.055", "--grid", "cad.R=0.016,0", "--laps", "2",
                  "--max-iter", "2", "--workers", "1", "--out-dir", str(out), "--json", "-q"])
     assert code == 0
     summary = json.loads(capsys.readouterr().out)
@@ -59,9 +59,11 @@ def test_designs_run_in_parallel_processes_with_the_same_results():
 
 
 @pytest.mark.parametrize("args, needle", [
-    (["--param", "cad.Q=1,2"], "unknown parameter address"),
-    (["--param", "motion.mu=0.5,0.9"], "varies cad.* parameters"),
-    (["--param", "cad.L=0.04,x"], "comma-separated numbers"),
+    (["--grid", "cad.Q=1,2"], "unknown parameter address"),
+    (["--grid", "motion.mu=0.5,0.9"], "varies cad.* parameters"),
+    (["--grid", "cad.L=0.04,x"], "comma-separated numbers"),
+    (["--grid", "cad.L=0.04,0.04"], "given twice"),
+    (["--laps", "0"], "outside"),
     (["--track", "nowhere"], "unknown track"),
 ])
 def test_design_bad_input_is_one_line_and_exit_2(args, needle, capsys, tmp_path):
@@ -72,7 +74,7 @@ def test_design_bad_input_is_one_line_and_exit_2(args, needle, capsys, tmp_path)
 
 def test_json_output_has_null_for_missing_figures():
     """A design that builds but finishes no lap has no median: its JSON says null, and strings stay intact."""
-    from tuner.jsonable import json_safe
+    from lf_common.files import json_safe
 
     out = json.dumps(json_safe({"median": float("nan"), "se": float("inf"), "note": "NaN-free Infinity",
                                 "laps": [1.0, float("-inf")], "ci": (0.5, float("nan"))}), allow_nan=False)

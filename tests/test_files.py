@@ -36,7 +36,7 @@ def test_generate_refuses_a_folder_holding_the_users_files(tmp_path):
     d = tmp_path / "d"
     d.mkdir()
     (d / "notes.txt").write_text("keep")
-    r = run_cli("mjcf", "generate", "-o", str(d))
+    r = run_cli("mjcf", "generate", "--out-dir", str(d))
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and "notes.txt" in r.stderr and "Traceback" not in r.stderr
     assert snapshot(d) == {"notes.txt": b"keep"}
@@ -44,24 +44,24 @@ def test_generate_refuses_a_folder_holding_the_users_files(tmp_path):
 
 def test_generate_into_the_working_folder_is_refused_and_touches_nothing(tmp_path):
     (tmp_path / "mine.txt").write_text("mine")
-    r = run_cli("mjcf", "generate", "-o", ".", cwd=tmp_path)
+    r = run_cli("mjcf", "generate", "--out-dir", ".", cwd=tmp_path)
     assert r.returncode == 2 and "current folder" in r.stderr
     assert os.listdir(tmp_path) == ["mine.txt"]
 
 
 def test_our_folder_is_replaced_but_not_once_the_user_added_or_changed_a_file(tmp_path):
     out = tmp_path / "robot"
-    assert run_cli("mjcf", "generate", "-o", str(out)).returncode == 0
-    assert run_cli("mjcf", "generate", "-o", str(out), "--set", "cad.L=0.05").returncode == 0  # ours: replaced
+    assert run_cli("mjcf", "generate", "--out-dir", str(out)).returncode == 0
+    assert run_cli("mjcf", "generate", "--out-dir", str(out), "--set", "cad.L=0.05").returncode == 0  # ours: replaced
     assert "0.05" in (out / "robot.urdf").read_text()
     urdf = (out / "robot.urdf").read_bytes()
     (out / "robot.urdf").write_bytes(urdf + b"<!-- my edit -->")
-    r = run_cli("mjcf", "generate", "-o", str(out))
+    r = run_cli("mjcf", "generate", "--out-dir", str(out))
     assert r.returncode == 2 and "robot.urdf (changed)" in r.stderr
     assert (out / "robot.urdf").read_bytes().endswith(b"<!-- my edit -->")
     (out / "robot.urdf").write_bytes(urdf)
     (out / "meshes" / "extra.stl").write_bytes(b"user")
-    r = run_cli("mjcf", "generate", "-o", str(out))
+    r = run_cli("mjcf", "generate", "--out-dir", str(out))
     assert r.returncode == 2 and "extra.stl" in r.stderr
     assert (out / "meshes" / "extra.stl").read_bytes() == b"user"
 

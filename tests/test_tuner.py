@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from tuner.cli import main as tuner_main
+from twin.cli.tune import main as tuner_main
 from tuner.gradient import DescentOptions, central_difference, descend, sequential
 from tuner.objective import PENALTY_S, SLOW_SPEED, LapObjective, lap_cost
 from tuner.space import SearchSpace, TunerError

@@ -1,8 +1,7 @@
 """Learning partial model (paper §3.7, Eqs. 12–13): gradient descent over model-space addresses, its laps run
-as batches of parallel simulations (``twin.closed_loop.run_laps``)."""
+as batches of parallel simulations (``twin.closed_loop.run_laps``); alignment to a lap time or a recorded run;
+design studies; the live twin's re-alignment.
 
-from tuner.gradient import DescentOptions, descend, sequential
-from tuner.objective import LapObjective, lap_cost
-from tuner.space import SearchSpace, TunerError
-
-__all__ = ["DescentOptions", "LapObjective", "SearchSpace", "TunerError", "descend", "lap_cost", "sequential"]
+Importing ``tuner`` loads nothing heavy (``python -m tuner`` handles Ctrl-C from its first instant); import the
+modules: ``tuner.gradient``, ``tuner.objective``, ``tuner.space``, ``tuner.align``, ``tuner.design``, …
+"""

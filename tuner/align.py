@@ -100,7 +100,7 @@ def align_lap_time(
 ) -> LapTimeAlignment:
     """Align one parameter to a measured lap time (see the module docstring)."""
     if not (isinstance(measured_lap_time_s, (int, float)) and math.isfinite(measured_lap_time_s) and measured_lap_time_s > 0):
-        raise TunerError(f"--measured-lap-time: must be a finite number of seconds > 0, got {measured_lap_time_s!r}")
+        raise TunerError(f"measured lap time: must be a finite number of seconds > 0, got {measured_lap_time_s!r}")
     p = twin.space.parameter(address)
     if p.cost is ChangeCost.REBUILD or p.integer:
         raise TunerError(f"{address}: alignment searches parameters that can differ between the laps of one batch")

@@ -32,6 +32,7 @@ from mujoco import minimize
 
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
+from twin.lap import LapResult
 from twin.model_space import ChangeCost
 from twin.telemetry import Telemetry
 from tuner.align import DEFAULT_RANGES
@@ -66,6 +67,7 @@ class TraceAlignment:
     iterations: int
     laps: int
     correlation: list[list[float]]
+    best_lap: LapResult | None = None  # the twin's lap at the fitted values, with its trace
 
 
 def odometry(t: np.ndarray, wl: np.ndarray, wr: np.ndarray, radius: float) -> np.ndarray:
@@ -113,7 +115,7 @@ def align_telemetry(twin: DigitalTwin, tel: Telemetry, addresses: Sequence[str],
                     nthread: int = 0) -> TraceAlignment:
     addresses = list(addresses)
     if not addresses or len(set(addresses)) != len(addresses):
-        raise TunerError("--parameter: give each parameter to align once")
+        raise TunerError(f"trace alignment: give each parameter once, got {', '.join(addresses) or 'none'}")
     nominal, lo, hi = [], [], []
     for a in addresses:
         p = twin.space.parameter(a)
@@ -193,4 +195,4 @@ def align_telemetry(twin: DigitalTwin, tel: Telemetry, addresses: Sequence[str],
     best = f.laps_for(x[:, None])[0]
     wheel = r0[: 2 * len(tel.t)] / f.weight * WHEEL_SCALE
     return TraceAlignment(tuple(fitted), float(np.sqrt(np.mean(wheel ** 2))),
-                          best.lap_time_s if best.completed else None, tel.lap_time_s, len(log), f.laps, corr)
+                          best.lap_time_s if best.completed else None, tel.lap_time_s, len(log), f.laps, corr, best)

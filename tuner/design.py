@@ -19,12 +19,23 @@ import logging
 import math
 import multiprocessing
 import os
+import signal
+import threading
+import time
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
+from lf_common.errors import LineFollowerError
+from tuner.gradient import DescentOptions, descend
+from tuner.objective import LapObjective
+from tuner.space import SearchSpace
+from twin.closed_loop import run_laps
+from twin.digital_twin import DigitalTwin
+
 log = logging.getLogger(__name__)
 
+PARENT_POLL_S = 0.5  # how often a worker checks that the study's process is still there [s]
 DEFAULT_GRID: dict[str, tuple[float, ...]] = {"cad.L": (0.035, 0.045, 0.055), "cad.S": (0.04, 0.06, 0.08)}
 
 
@@ -62,15 +73,6 @@ def grid(params: Mapping[str, Sequence[float]]) -> list[dict[str, float]]:
 
 def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -> DesignResult:
     """Build, tune and evaluate one design (in a worker process). Never raises for a bad design."""
-    import time
-
-    from tuner.gradient import DescentOptions, descend
-    from tuner.objective import LapObjective
-    from tuner.space import SearchSpace
-    from twin.closed_loop import run_laps
-    from twin.digital_twin import DigitalTwin
-    from twin.errors import TwinError
-
     t0 = time.perf_counter()
     try:
         twin = DigitalTwin(track=base["track"], track_metres_per_pixel=base.get("metres_per_pixel"))
@@ -87,13 +89,30 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
             design, True, None, gains, len(r.iterations), objective.laps, r.converged,
             tuple(float(e.lap_time_s) for e in done), len(evals) - len(done),
             float(np.mean([e.mean_cross_track_m for e in done])) if done else math.nan, time.perf_counter() - t0)
-    except (TwinError, ValueError) as e:
+    except LineFollowerError as e:
         return DesignResult(design, False, str(e), {}, 0, 0, False, (), 0, math.nan, time.perf_counter() - t0)
+
+
+def _worker_start(parent_pid: int) -> None:
+    """In each worker: leave Ctrl-C to the parent (it reaches the whole process group), and exit when the
+    parent is gone, however it died (SIGKILL leaves no chance to clean up), instead of running on as an orphan."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def study(designs: Sequence[dict[str, float]], base: dict, laps: int = 20, max_iter: int = 30, workers: int = 0,
           on_done: Callable[[DesignResult], None] | None = None) -> list[DesignResult]:
-    """Run every design (in parallel processes); results in the order of ``designs``."""
+    """Run every design (in parallel processes); results in the order of ``designs``.
+
+    An interrupt (Ctrl-C, SIGTERM raised as an exception in the main thread) stops the workers at once: the
+    running designs are abandoned, not waited for.
+    """
     workers = workers or os.cpu_count() or 1
     results: list[DesignResult | None] = [None] * len(designs)
     if workers == 1:
@@ -103,12 +122,21 @@ def study(designs: Sequence[dict[str, float]], base: dict, laps: int = 20, max_i
                 on_done(results[i])
         return results
     ctx = multiprocessing.get_context("spawn")  # fresh interpreters: MuJoCo and its callback set up per worker
-    with cf.ProcessPoolExecutor(max_workers=min(workers, len(designs)), mp_context=ctx) as pool:
+    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(designs)), mp_context=ctx, initializer=_worker_start,
+                                  initargs=(os.getpid(),))
+    try:
         futures = {pool.submit(run_design, d, base, laps, max_iter): i for i, d in enumerate(designs)}
         for f in cf.as_completed(futures):
             results[futures[f]] = f.result()
             if on_done:
                 on_done(results[futures[f]])
+    except BaseException:
+        # the executor would wait for the running designs (minutes): stop its processes instead
+        for process in list(getattr(pool, "_processes", {}).values()):
+            process.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
     return results
 
 

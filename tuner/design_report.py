@@ -19,9 +19,8 @@ matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from lf_common.files import GENERATOR, output_dir  # noqa: E402
+from lf_common.files import GENERATOR, json_safe, output_dir  # noqa: E402
 from tuner.design import DesignResult  # noqa: E402
-from tuner.jsonable import json_safe  # noqa: E402
 
 
 def slug(r: DesignResult) -> str:
@@ -101,5 +100,6 @@ def write_report(out_dir: str, results: Sequence[DesignResult], front: Sequence[
                                  "designs": [{**r.__dict__, "median_lap_time_s": r.median_s, "pareto": on, "label": r.label}
                                              for r, on in zip(results, front)]}), f, indent=2, allow_nan=False)
     out_dir = os.path.abspath(out_dir)
-    return {k: os.path.join(out_dir, v) for k, v in (("chart", "lap_times.png"), ("pareto", "pareto.png"),
-                                                      ("table", "designs.csv"), ("json", "designs.json"), ("gains", "gains"))}
+    return {"folder": out_dir, **{k: os.path.join(out_dir, v) for k, v in (
+        ("chart", "lap_times.png"), ("pareto", "pareto.png"), ("table", "designs.csv"), ("json", "designs.json"),
+        ("gains", "gains"))}}

@@ -1,4 +1,8 @@
-"""rerun recording of a tuning run: each iteration's parameters and lap time, and the best lap's path."""
+"""rerun recordings of the learning model's work: tuning runs, alignments, design studies and the live twin.
+
+Each writer takes ``save`` (a path or None) and ``view`` (stream to the viewer) and goes through
+:func:`twin.recording.recording`: atomic files that replace only recordings of ours, one unit per panel.
+"""
 
 from __future__ import annotations
 
@@ -8,37 +12,150 @@ from typing import Sequence
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+from PIL import Image
 
+from twin import recording as twin_recording
 from twin.digital_twin import DigitalTwin
 from twin.lap import LapResult
-from twin.recording import log_lap, log_track, recording_file
+from twin.recording import log_lap, log_track, recording
+from twin.telemetry import Telemetry
 from tuner.gradient import Iteration
 from tuner.space import SearchSpace
 
 
-def save_tuning(out_path: str, twin: DigitalTwin, space: SearchSpace, iterations: Sequence[Iteration],
-                best_lap: LapResult) -> str:
-    """Write the tuning run to an .rrd file atomically; returns its path."""
+def _saved(save: str | None) -> str | None:
+    return os.path.abspath(save) if save else None
+
+
+def _series(rec: rr.RecordingStream, entity: str, index: list, values) -> None:
+    rr.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values), recording=rec)
+
+
+def save_tuning(save: str | None, view: bool, twin: DigitalTwin, space: SearchSpace, iterations: Sequence[Iteration],
+                best_lap: LapResult) -> str | None:
+    """Each iteration's lap time and parameters (raw and as a fraction of their bounds), and the best lap."""
+    if not save and not view:
+        return None
     blueprint = rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(
                 rrb.TimeSeriesView(name="lap time [s]", origin="/tuning/lap_time"),
-                rrb.TimeSeriesView(name="parameters (fraction of their bounds)", origin="/tuning/normalised"),
+                rrb.TimeSeriesView(name="parameters (fraction of their bounds) [-]", origin="/tuning/normalised"),
             ),
             rrb.Spatial2DView(name="best lap", origin="/track"),
         ),
         collapse_panels=True,
     )
-    with recording_file(out_path, blueprint) as rec:
-        k = np.array([it.k for it in iterations])
-        index = [rr.TimeColumn("iteration", sequence=k)]
-        rr.send_columns("tuning/lap_time", indexes=index, columns=rr.Scalars.columns(scalars=[it.cost for it in iterations]),
-                        recording=rec)
+    with recording(save, view, blueprint) as rec:
+        index = [rr.TimeColumn("iteration", sequence=np.array([it.k for it in iterations]))]
+        _series(rec, "tuning/lap_time", index, [it.cost for it in iterations])
         for i, a in enumerate(space.addresses):
-            z = np.array([it.z[i] for it in iterations])
-            rr.send_columns(f"tuning/normalised/{a}", indexes=index, columns=rr.Scalars.columns(scalars=z), recording=rec)
-            x = space.from_unit(np.array([it.z for it in iterations]))[:, i]
-            rr.send_columns(f"tuning/value/{a}", indexes=index, columns=rr.Scalars.columns(scalars=x), recording=rec)
+            _series(rec, f"tuning/normalised/{a}", index, np.array([it.z[i] for it in iterations]))
+            _series(rec, f"tuning/value/{a}", index, space.from_unit(np.array([it.z for it in iterations]))[:, i])
         log_track(rec, twin.track, twin.texture)
         log_lap(rec, twin.track, twin.texture, best_lap, "best")
-    return os.path.abspath(out_path)
+    return _saved(save)
+
+
+def save_alignment(save: str | None, view: bool, result, unit: str) -> str | None:
+    """The aligned parameter and the lap time, lap by lap, against the measurement (paper Fig. 6b–c)."""
+    if not save and not view:
+        return None
+    blueprint = rrb.Blueprint(rrb.Vertical(
+        rrb.TimeSeriesView(name=f"{result.parameter} [{unit}]", origin="/align/value"),
+        rrb.TimeSeriesView(name="lap time [s]", contents=["/align/lap_time", "/align/measured"]),
+    ), collapse_panels=True)
+    with recording(save, view, blueprint) as rec:
+        pts = [p for p in result.trace if p.lap_time_s is not None]
+        index = [rr.TimeColumn("lap", sequence=np.arange(len(pts)))]
+        _series(rec, "align/value", index, [p.value for p in pts])
+        _series(rec, "align/lap_time", index, [p.lap_time_s for p in pts])
+        _series(rec, "align/measured", index, np.full(len(pts), result.measured_lap_time_s))
+    return _saved(save)
+
+
+def save_trace_alignment(save: str | None, view: bool, tel: Telemetry, result) -> str | None:
+    """The robot's recorded wheel speeds and line position against the twin's at the fitted values."""
+    if not save and not view:
+        return None
+    blueprint = rrb.Blueprint(rrb.Vertical(
+        rrb.TimeSeriesView(name="left wheel speed [rad/s]", origin="/trace/wheel_left"),
+        rrb.TimeSeriesView(name="right wheel speed [rad/s]", origin="/trace/wheel_right"),
+        rrb.TimeSeriesView(name="line position (readLine) [-]", origin="/trace/line_position"),
+    ), collapse_panels=True)
+    with recording(save, view, blueprint) as rec:
+        series = [("robot", tel.t, tel.wl, tel.wr, tel.pos)]
+        tr = result.best_lap.trace if result.best_lap is not None else None
+        if tr is not None:
+            series.append(("twin", tr.time_s, tr.column("wheel_left_radps"), tr.column("wheel_right_radps"),
+                           tr.column("position")))
+        for who, t, wl, wr, pos in series:
+            index = [rr.TimeColumn("lap_time", duration=np.asarray(t))]
+            _series(rec, f"trace/wheel_left/{who}", index, wl)
+            _series(rec, f"trace/wheel_right/{who}", index, wr)
+            _series(rec, f"trace/line_position/{who}", index, pos)
+    return _saved(save)
+
+
+def save_design(save: str | None, view: bool, charts: dict[str, str]) -> str | None:
+    """The design study's charts (box plot of lap times, Pareto view) as images."""
+    if not save and not view:
+        return None
+    blueprint = rrb.Blueprint(rrb.Horizontal(
+        rrb.Spatial2DView(name="lap times", origin="/design/lap_times"),
+        rrb.Spatial2DView(name="Pareto", origin="/design/pareto")), collapse_panels=True)
+    with recording(save, view, blueprint) as rec:
+        for entity, key in (("design/lap_times", "chart"), ("design/pareto", "pareto")):
+            with Image.open(charts[key]) as img:
+                rr.log(entity, rr.Image(np.asarray(img.convert("RGB"))), static=True, recording=rec)
+    return _saved(save)
+
+
+class LiveRecording:
+    """The live comparison, streamed lap by lap: both lap times, their discrepancy, the aligned parameter,
+    and both laps' wheel speed and line position on one lap-time axis (where they part is visible)."""
+
+    def __init__(self, save: str | None, view: bool, address: str, unit: str):
+        self.address = address
+        blueprint = rrb.Blueprint(rrb.Horizontal(
+            rrb.Vertical(
+                rrb.TimeSeriesView(name="lap time [s]", origin="/live/lap_time"),
+                rrb.TimeSeriesView(name="discrepancy, robot vs twin [-]", origin="/live/discrepancy"),
+                rrb.TimeSeriesView(name=f"{address} [{unit}]", origin=f"/live/{address}"),
+            ),
+            rrb.Vertical(
+                rrb.TimeSeriesView(name="left wheel speed [rad/s]", origin="/live/wheel_left"),
+                rrb.TimeSeriesView(name="line position (readLine) [-]", origin="/live/line_position"),
+            ),
+        ), collapse_panels=True)
+        self._context = recording(save, view, blueprint, app_id=f"{twin_recording.APP_ID}-live")
+        self.rec = self._context.__enter__()
+        self.saved = _saved(save)
+
+    def lap(self, e: dict) -> None:
+        rec = self.rec
+        rec.set_time("lap", sequence=e["lap"])
+        if e["robot_lap_time_s"]:
+            rec.log("live/lap_time/robot", rr.Scalars(e["robot_lap_time_s"]))
+        if e["twin_lap_time_s"]:
+            rec.log("live/lap_time/twin", rr.Scalars(e["twin_lap_time_s"]))
+        if e["discrepancy"] is not None:
+            rec.log("live/discrepancy", rr.Scalars(e["discrepancy"]))
+        rec.log(f"live/{self.address}", rr.Scalars(e[self.address]))
+        lap, twin_trace = e["lap_record"], e["twin_lap"].trace
+        series = [("robot", lap.t, lap.wl, lap.pos)]
+        if twin_trace is not None:
+            series.append(("twin", twin_trace.time_s, twin_trace.column("wheel_left_radps"), twin_trace.column("position")))
+        for who, t, wl, pos in series:
+            if len(t):
+                index = [rr.TimeColumn("lap_time", duration=t)]
+                rec.send_columns(f"live/wheel_left/{who}", indexes=index, columns=rr.Scalars.columns(scalars=wl))
+                rec.send_columns(f"live/line_position/{who}", indexes=index, columns=rr.Scalars.columns(scalars=pos))
+        rec.flush()
+
+    def close(self, error: BaseException | None = None) -> None:
+        """Finish the recording (renamed into place); after an error the partial file is discarded."""
+        if error is None:
+            self._context.__exit__(None, None, None)
+        else:
+            self._context.__exit__(type(error), error, error.__traceback__)

@@ -51,10 +51,10 @@ class SearchSpace:
     def __init__(self, space: ModelSpace, addresses: Sequence[str] = (), bounds: Mapping[str, tuple[float, float]] = {}):
         addresses = list(addresses) or list(DEFAULT_BOUNDS)
         if len(set(addresses)) != len(addresses):
-            raise TunerError(f"--param: an address is given twice ({', '.join(addresses)})")
+            raise TunerError(f"search space: an address is given twice ({', '.join(addresses)})")
         for a in bounds:
             if a not in addresses:
-                raise TunerError(f"--bounds {a}: not a searched parameter (searched: {', '.join(addresses)})")
+                raise TunerError(f"bounds of {a}: not a searched parameter (searched: {', '.join(addresses)})")
         self.params: list[Bounded] = []
         for a in addresses:
             p = space.parameter(a)  # unknown address: one-line error
@@ -97,20 +97,3 @@ class SearchSpace:
 
     def assignments(self, x: np.ndarray) -> dict[str, float]:
         return {a: float(v) for a, v in zip(self.addresses, x)}
-
-
-def parse_bounds(items, addresses: Sequence[str] | None = None) -> dict[str, tuple[float, float]]:
-    """``["control.kp=1,60", ...]`` → {"control.kp": (1.0, 60.0)}; each address must be among ``addresses``
-    when given. The bounds themselves are checked where they are used (:class:`SearchSpace`, the aligners)."""
-    from mjcf.cli import parse_assignments
-
-    out = {}
-    for address, text in parse_assignments(items).items():
-        if addresses is not None and address not in addresses:
-            raise TunerError(f"--bounds {address}: not a searched parameter ({', '.join(addresses)})")
-        try:
-            lo, hi = (float(p) for p in str(text).split(","))
-        except ValueError:
-            raise TunerError(f"--bounds {address}={text}: expected LOWER,UPPER, e.g. control.kp=1,60") from None
-        out[address] = (lo, hi)
-    return out

@@ -1,7 +1,8 @@
 """rerun recordings of laps: the track, the robot's path, sensor readings and control signals over time.
 
 Whole series go in with ``send_columns`` (one call per signal, not one per tick), and a blueprint lays the
-views out. Files are written to a temporary name and renamed when complete, so a crash leaves no half file.
+views out, one unit per panel. Files are written to a temporary name and renamed when complete, so a crash
+leaves no half file; ``--view`` alone streams to the viewer and writes nothing.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from mjcf.track import FloorTexture, Track
+from lf_common.files import atomic_path, check_output_file, rrd_is_ours
+from twin import viewer
 from twin.errors import TwinError
 from twin.lap import LapResult
 
@@ -30,7 +33,8 @@ def lap_blueprint(count: int) -> rrb.Blueprint:
             rrb.Vertical(
                 rrb.TimeSeriesView(name="line angle e [rad]", origin="/control/e"),
                 rrb.TimeSeriesView(name="v [m/s], ω [rad/s]", contents=["/control/v", "/control/omega"]),
-                rrb.TimeSeriesView(name="motor voltage [V]", origin="/motors"),
+                rrb.TimeSeriesView(name="motor voltage [V]", contents=["/motors/left", "/motors/right"]),
+                rrb.TimeSeriesView(name="energy drawn [J]", origin="/energy"),
                 rrb.TimeSeriesView(name=f"calibrated readings 0..1000 ({count} sensors)", origin="/sensors/calibrated"),
                 rrb.TimeSeriesView(name="cross-track error [m]", origin="/lap/cross_track"),
             ),
@@ -70,7 +74,7 @@ def log_lap(rec: rr.RecordingStream, track: Track, texture: FloorTexture, result
     rr.send_columns(f"track/{name}/position", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
                     columns=rr.Points2D.columns(positions=path).partition(np.ones(len(t), dtype=int)), recording=rec)
     for col, entity in (("e_rad", "control/e"), ("v_mps", "control/v"), ("omega_radps", "control/omega"),
-                        ("u_left_v", "motors/left"), ("u_right_v", "motors/right"), ("energy_j", "motors/energy_j")):
+                        ("u_left_v", "motors/left"), ("u_right_v", "motors/right"), ("energy_j", "energy/motors")):
         _series(rec, entity, t, tr.column(col))
     _series(rec, "lap/cross_track", t, tr.cross_track_m)
     _series(rec, "lap/progress", t, tr.progress_m)
@@ -88,49 +92,57 @@ def log_track(rec: rr.RecordingStream, track: Track, texture: FloorTexture) -> N
     rr.log("track/start", rr.Points2D(start, radii=3.0, colors=[[40, 200, 80]], labels=["start"]), static=True, recording=rec)
 
 
+def check_targets(save: str | None, view: bool) -> None:
+    """Before any work: the recording can be written where asked, and a viewer can open if asked."""
+    if save:
+        check_output_file(save, rrd_is_ours, "recording")
+    if view:
+        viewer.require_display()
+        viewer.viewer_executable()
+
+
+@contextlib.contextmanager
+def recording(save: str | None, view: bool, blueprint: rrb.Blueprint, app_id: str = APP_ID) -> Iterator[rr.RecordingStream | None]:
+    """A recording streamed to a viewer (``view``) and/or saved to ``save``; None when neither is asked.
+
+    The file is written under a temporary name and renamed into place when the ``with`` block completes, and
+    replaces only a recording this program wrote; a failure leaves no file. With ``view`` alone nothing is
+    written to disk: the data streams to the viewer.
+    """
+    if not save and not view:
+        yield None
+        return
+    check_targets(save, view)
+    with contextlib.ExitStack() as stack:
+        sinks = []
+        if save:
+            sinks.append(rr.FileSink(stack.enter_context(atomic_path(save, rrd_is_ours, "recording"))))
+        if view:
+            sinks.append(rr.GrpcSink(viewer.spawn_for_stream()))
+        rec = rr.RecordingStream(app_id)
+        rec.set_sinks(*sinks, default_blueprint=blueprint)
+        try:
+            yield rec
+        finally:
+            rec.flush()
+            rec.disconnect()
+
+
 @contextlib.contextmanager
 def recording_file(out_path: str, blueprint: rrb.Blueprint) -> Iterator[rr.RecordingStream]:
-    """A recording saved to ``out_path``: written to a temporary name and renamed into place only when the
-    ``with`` block completes, so a failure leaves no half file. ``out_path`` is made absolute."""
-    out_path = os.path.abspath(out_path)
-    tmp = f"{out_path}.{os.getpid()}.tmp"
-    rec = rr.RecordingStream(APP_ID)
-    try:
-        rec.save(tmp, default_blueprint=blueprint)
+    """A recording saved to ``out_path`` only (see :func:`recording`)."""
+    with recording(out_path, False, blueprint) as rec:
         yield rec
-        rec.flush()
-        rec.disconnect()
-        os.replace(tmp, out_path)
-    except OSError as e:
-        raise TwinError(f"{out_path}: cannot write the recording ({e.strerror or e})") from None
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
 
 
-def save_laps(out_path: str, track: Track, texture: FloorTexture, results: Sequence[LapResult], names: Sequence[str]) -> str:
-    """Write laps to an .rrd file atomically; returns its path."""
+def save_laps(save: str | None, view: bool, track: Track, texture: FloorTexture, results: Sequence[LapResult],
+              names: Sequence[str]) -> str | None:
+    """Laps to a saved recording and/or the viewer (see :func:`recording`); returns the saved path, if any."""
+    if not save and not view:
+        return None
     count = results[0].trace.count if results and results[0].trace else 8
-    with recording_file(out_path, lap_blueprint(count)) as rec:
+    with recording(save, view, lap_blueprint(count)) as rec:
         log_track(rec, track, texture)
         for r, n in zip(results, names):
             log_lap(rec, track, texture, r, n)
-    return os.path.abspath(out_path)
-
-
-def view(paths: Sequence[str] = ()) -> None:
-    """Open the rerun viewer on saved recordings (or an empty one to stream into)."""
-    import shutil
-    import subprocess
-    import sys
-
-    for p in paths:
-        if not os.path.isfile(p):
-            raise TwinError(f"{p}: no such recording")
-    exe = shutil.which("rerun") or os.path.join(os.path.dirname(sys.executable), "rerun")
-    if not os.path.exists(exe):
-        raise TwinError("rerun viewer: the 'rerun' command is not installed (pip install rerun-sdk)")
-    try:
-        subprocess.Popen([exe, *paths])
-    except OSError as e:
-        raise TwinError(f"rerun viewer: cannot start {exe} ({e.strerror or e})") from None
+    return os.path.abspath(save) if save else None

@@ -1,0 +1,116 @@
+"""``align``: the value of a parameter (tyre μ by default) for which the simulated lap takes the measured time,
+or the parameters that make the twin reproduce a recorded run's telemetry."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+
+from lf_common.files import check_output_file, json_is_ours
+from twin import recording
+from twin.cli import options as o
+from twin.cli.output import Output
+from twin.errors import TwinError
+from twin.parameter_files import save_values
+from twin.telemetry import read_telemetry
+from tuner.align import ACCEPT, TOLERANCE, align_lap_time
+from tuner.align_trace import align_telemetry
+from tuner.recording import save_alignment, save_trace_alignment
+
+HELP = "align a parameter (default motion.mu) to a measured lap time, or parameters to a recorded run"
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("align", help=HELP, description=(
+        f"With --measured-lap-time: find the value of one parameter (tyre friction μ by default) for which the "
+        f"simulated lap is within {ACCEPT * 100:g} % of the measured one (it aims for {TOLERANCE * 100:g} %), or say "
+        "that none does. With --telemetry: fit parameters so the twin reproduces a recorded run's encoder traces and "
+        "lap time, with 95 % intervals, and say which the run cannot identify. Exit status 1 when the measurement is "
+        "not explained or a parameter is not identifiable."))
+    p.add_argument("--measured-lap-time", type=o.number(0.0, 3600.0, lo_open=True), metavar="S",
+                   help="the robot's lap time [s]")
+    p.add_argument("--telemetry", metavar="LAP.jsonl", help="a recorded run (lf-telemetry, see twin.telemetry); its "
+                   "track and gains are used unless --track/--gains say otherwise")
+    o.add_search(p, "what to align, repeatable with --telemetry (default motion.mu; with --telemetry motion.mu and "
+                    "motor.R_M)")
+    o.add_world(p, track_default=None)
+    o.add_values(p)
+    o.add_seed(p, 0, "the twin's sensor-noise seed")
+    o.add_out(p, "the aligned values as a parameter file (load it with --params)", "FILE.json")
+    o.add_json(p)
+    o.add_recording(p, "the alignment")
+    o.add_verbose(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if (args.measured_lap_time is None) == (args.telemetry is None):
+        raise TwinError("align: give either --measured-lap-time SECONDS or --telemetry FILE.jsonl")
+    if args.out:
+        check_output_file(args.out, json_is_ours, "parameter file")
+    recording.check_targets(args.save, args.view)
+    return _telemetry(args) if args.telemetry is not None else _lap_time(args)
+
+
+def _lap_time(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    parameters = args.param or ["motion.mu"]
+    if len(parameters) != 1:
+        raise TwinError("--measured-lap-time aligns one parameter: one lap time cannot fix several")
+    twin = o.twin_from_args(args)
+    address = parameters[0]
+    bounds = o.parse_bounds(args.bounds, parameters).get(address)
+    r = align_lap_time(twin, args.measured_lap_time, address, bounds=bounds, seed=args.seed)
+    summary = {**r.summary(), "recording": None, "out": None}
+    if args.out and r.explained:
+        summary["out"] = save_values(args.out, {address: r.value}, source="align --measured-lap-time",
+                                     measured_lap_time_s=r.measured_lap_time_s, simulated_lap_time_s=r.simulated_lap_time_s)
+    summary["recording"] = save_alignment(args.save, args.view, r, twin.space.parameter(address).unit)
+    out.document(summary)
+    out.say(r.message)
+    if r.reachable_s:
+        out.say(f"lap times {r.parameter} can give with these gains: {r.reachable_s[0]:.3f}–{r.reachable_s[1]:.3f} s")
+    out.say(f"{r.iterations} iterations, {r.laps} laps")
+    for what in ("out", "recording"):
+        if summary[what]:
+            out.say(f"wrote {summary[what]}")
+    return 0 if r.explained else 1
+
+
+def _telemetry(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    tel = read_telemetry(args.telemetry)
+    # the run's own track and gains unless told otherwise: they are what the robot ran with
+    twin = o.twin_from_args(args, track=args.track or tel.header.get("track", "default"))
+    if not args.gains and tel.gains:
+        fixed = o.parse_assignments(args.set)
+        twin.update({a: v for a, v in tel.gains.items() if a not in fixed})
+    parameters = args.param or ["motion.mu", "motor.R_M"]
+    r = align_telemetry(twin, tel, parameters, bounds=o.parse_bounds(args.bounds, parameters), seed=args.seed)
+    summary = {
+        "telemetry": os.path.abspath(args.telemetry), "parameters": [p.__dict__ for p in r.parameters],
+        "rms_wheel_speed_radps": r.rms_wheel_radps, "simulated_lap_time_s": r.simulated_lap_time_s,
+        "measured_lap_time_s": r.measured_lap_time_s, "iterations": r.iterations, "laps": r.laps,
+        "correlation": r.correlation, "out": None, "recording": None,
+    }
+    if args.out:
+        summary["out"] = save_values(args.out, {p.address: p.value for p in r.parameters}, source="align --telemetry",
+                                     telemetry=os.path.abspath(args.telemetry),
+                                     identifiable={p.address: p.identifiable for p in r.parameters})
+    summary["recording"] = save_trace_alignment(args.save, args.view, tel, r)
+    out.document(summary)
+    for p in r.parameters:
+        ci = f"95 % [{p.ci95[0]:.5g}, {p.ci95[1]:.5g}]" if math.isfinite(p.stderr) else "no interval"
+        out.say(f"{p.address} = {p.value:.5g}  ({ci}): {p.note}")
+    lap = f"{r.simulated_lap_time_s:.3f} s" if r.simulated_lap_time_s else "not completed"
+    meas = f"{r.measured_lap_time_s:.3f} s" if r.measured_lap_time_s else "no lap in the run"
+    out.say(f"wheel speeds match to {r.rms_wheel_radps:.3f} rad/s rms; lap {lap} against {meas}; "
+            f"{r.iterations} iterations, {r.laps} laps")
+    unidentified = [p.address for p in r.parameters if not p.identifiable]
+    if unidentified:
+        out.say(f"exit status 1: this run does not identify {', '.join(unidentified)} (see the notes above)")
+    for what in ("out", "recording"):
+        if summary[what]:
+            out.say(f"wrote {summary[what]}")
+    return 0 if not unidentified else 1

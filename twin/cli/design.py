@@ -1,0 +1,90 @@
+"""``design``: a design study: rebuild, tune and race every design of a grid over cad.* parameters."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from lf_common.files import check_output_dir
+from twin import recording
+from twin.cli import options as o
+from twin.cli.output import Output
+from twin.environment import load_track
+from twin.errors import TwinError
+from twin.models import default_space
+from tuner.design import DEFAULT_GRID, grid, pareto, study, trend
+from tuner.design_report import write_report
+from tuner.recording import save_design
+
+HELP = "design study: rebuild, tune and race every design of a grid over cad.* parameters"
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("design", help=HELP, description=(
+        "For each design: rebuild the robot, tune the gains from the same start until convergence, run the converged "
+        "gains for --laps laps with different noise seeds. Writes a box plot, a Pareto chart, a table and per-design "
+        "gains to --out-dir."))
+    default = " ".join(f"{a}={','.join(f'{v:g}' for v in vs)}" for a, vs in DEFAULT_GRID.items())
+    p.add_argument("--grid", action="append", metavar="ADDRESS=V1,V2,...",
+                   help=f"a cad.* parameter and its values, repeatable (default: {default})")
+    p.add_argument("--param", dest="grid", action=o.deprecated(argparse._AppendAction, "--grid"), help=argparse.SUPPRESS)
+    o.add_world(p, robot=False)
+    p.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="a fixed model-space parameter, repeatable")
+    p.add_argument("--laps", type=o.count_type, default=20, metavar="N", help="laps per design after tuning, one noise seed each")
+    p.add_argument("--max-iter", type=o.count_type, default=30, metavar="N", help="tuning iteration cap per design")
+    o.add_workers(p, "designs (processes)")
+    o.add_out_dir(p, "the charts, table and gains", "design_study")
+    o.add_json(p)
+    o.add_recording(p, "the charts")
+    o.add_verbose(p, quiet=True)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    check_output_dir(args.out_dir, "design study folder")  # before any work: refused now, not after the study
+    recording.check_targets(args.save, args.view)
+    params = o.parse_grid(args.grid) if args.grid else dict(DEFAULT_GRID)
+    space = default_space()
+    for address in params:
+        space.parameter(address)  # an unknown address: one-line error
+        if not address.startswith("cad."):
+            raise TwinError(f"--grid {address}: a design study varies cad.* parameters (the robot's geometry)")
+    fixed = o.parse_assignments(args.set)
+    space.update(fixed)  # fixed values are checked now: a bad --set is bad input, not a failing design
+    load_track(args.track, space.get("environment.line_width"), space.get("environment.texture_resolution"),
+               args.metres_per_pixel)  # an unknown track or unreadable image: one-line error before any work
+    designs = grid(params)
+    base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": {a: float(v) for a, v in fixed.items()}}
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    bar = tqdm(total=len(designs), desc="designs", unit="design", disable=args.quiet or None)
+    results = study(designs, base, laps=args.laps, max_iter=args.max_iter, workers=args.workers,
+                    on_done=lambda r: (bar.update(1), bar.set_postfix_str(f"{r.label}: {r.median_s:.3f} s" if r.ok else f"{r.label}: failed")))
+    bar.close()
+    wall = time.perf_counter() - t0
+    front = pareto(results)
+    trends = [trend(results, a) for a in params]
+    meta = {"track": args.track, "grid": {a: list(v) for a, v in params.items()}, "fixed": base["values"],
+            "laps_per_design": args.laps, "wall_s": wall}
+    paths = write_report(args.out_dir, results, front, trends, meta)
+    paths["recording"] = save_design(args.save, args.view, paths)
+    out.document({**meta, "outputs": paths, "trends": trends,
+                  "designs": [{"design": r.design, "ok": r.ok, "error": r.error,
+                               "median_lap_time_s": r.median_s if r.ok else None, "laps_completed": len(r.lap_times_s),
+                               "mean_cross_track_m": r.mean_cross_track_m if r.ok else None, "pareto": on,
+                               "gains": r.gains} for r, on in zip(results, front)]})
+    for r, on in zip(results, front):
+        if r.ok:
+            t = sorted(r.lap_times_s)
+            spread = f"{t[0]:.3f}–{t[-1]:.3f}" if t else "–"
+            out.say(f"{r.label:28s} median {r.median_s:7.3f} s ({spread}, {len(t)}/{len(t) + r.failed_laps} laps), "
+                    f"cross-track {r.mean_cross_track_m * 1000:.1f} mm{'  pareto' if on else ''}")
+        else:
+            out.say(f"{r.label:28s} failed: {r.error}")
+    for t in trends:
+        out.say(t)
+    out.say(f"{len(designs)} designs in {wall:.0f} s; wrote {paths['folder']} (lap_times.png, pareto.png, designs.csv, "
+            "designs.json, gains/)")
+    return 0

@@ -1,0 +1,57 @@
+"""``lap``: calibrate, then one closed-loop lap (firmware in C), reported as text or JSON."""
+
+from __future__ import annotations
+
+import argparse
+
+from twin import recording
+from twin.cli import options as o
+from twin.cli.output import Output
+from twin.closed_loop import run_laps
+from twin.lap import LapLimits
+
+HELP = "calibrate and run one closed-loop lap; print the lap time and a summary"
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("lap", help=HELP, description=HELP + ". A lap that leaves the track is a result "
+                       "(completed: false, with the reason), not an error.")
+    o.add_world(p)
+    o.add_values(p)
+    o.add_seed(p, 0)
+    p.add_argument("--lap-timeout", type=o.number(0.0, 3600.0, lo_open=True), default=60.0, metavar="SIM_S",
+                   help="a lap not done after this many simulated seconds ends as 'timeout'")
+    p.add_argument("--timeout", dest="lap_timeout", type=o.number(0.0, 3600.0, lo_open=True),
+                   action=o.deprecated(argparse._StoreAction, "--lap-timeout"), help=argparse.SUPPRESS)
+    o.add_json(p)
+    o.add_recording(p, "the lap")
+    o.add_verbose(p)
+    p.set_defaults(run=run)
+
+
+def lap_summary(result, twin, seed: int) -> dict:
+    return {**result.summary(), "track": twin.track.name, "track_length_m": twin.track.length_m, "seed": seed}
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    recording.check_targets(args.save, args.view)  # before the lap: a bad path fails now, not after
+    twin = o.twin_from_args(args)
+    result = run_laps(twin, [{}], seed=args.seed, limits=LapLimits(timeout_s=args.lap_timeout),
+                      keep_traces=bool(args.save or args.view))[0]
+    saved = recording.save_laps(args.save, args.view, twin.track, twin.texture, [result], ["robot"])
+    summary = {**lap_summary(result, twin, args.seed), "recording": saved}
+    out.document(summary)
+    if result.completed:
+        out.say(f"lap completed in {result.lap_time_s:.3f} s on {twin.track.name} ({twin.track.length_m:.2f} m)")
+    else:
+        out.say(f"lap not completed: {result.failure} ({result.detail}) after {result.simulated_s:.2f} s, "
+                f"{result.distance_m:.2f} of {twin.track.length_m:.2f} m")
+    out.say(f"cross-track error: max {result.max_cross_track_m * 1000:.1f} mm, mean {result.mean_cross_track_m * 1000:.1f} mm")
+    out.say(f"energy drawn by the motors: {result.energy_j:.2f} J")
+    p = result.parameters
+    out.say(f"gains: v_max={p['control.v_max']:g} m/s, K_B={p['control.kb']:g}, K_P={p['control.kp']:g}, "
+            f"K_I={p['control.ki']:g}, K_D={p['control.kd']:g}, Δt={p['control.dt'] * 1000:g} ms; seed {args.seed}")
+    if saved:
+        out.say(f"recording: {saved}")
+    return 0

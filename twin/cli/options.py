@@ -1,0 +1,211 @@
+"""The flag vocabulary, written once: the same word means the same thing in every command (the README's
+"Flags" table lists every flag; a test checks it against ``--help``). Old spellings keep working for one
+release, hidden from ``--help``, with a deprecation warning on stderr.
+
+Also the one public way to build a twin from command-line options: :func:`twin_from_args`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from typing import Sequence
+
+from twin.cli.guard import fail
+from twin.digital_twin import DigitalTwin
+from twin.errors import TwinError
+from twin.parameter_files import load_gains, load_values
+
+MAX_SEED = 2**64 - 1
+
+
+class Formatter(argparse.RawDescriptionHelpFormatter):
+    """Help that shows each option's default (where it has one) and keeps the descriptions' line breaks."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if default is not None and default is not False and default != argparse.SUPPRESS and action.option_strings:
+            text += " (default: %(default)s)"
+        return text
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (``error: …``, exit 2) and defaults shown in ``--help``."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", Formatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str):
+        sys.exit(fail(f"{self.prog}: {message} (see --help)"))
+
+    def parse_or_exit_code(self, argv: list[str] | None) -> argparse.Namespace | int:
+        """Parsed options, or the exit code argparse chose (``--help`` → 0, a usage error → 2) for callers
+        that want a return value rather than ``SystemExit``."""
+        try:
+            return self.parse_args(argv)
+        except SystemExit as e:
+            return e.code if isinstance(e.code, int) else 2
+
+
+def deprecated(action: type[argparse.Action], new: str) -> type[argparse.Action]:
+    """An action that does what ``action`` does and warns that its spelling gives way to ``new``."""
+
+    class Deprecated(action):
+        def __call__(self, parser, namespace, values, option_string=None):
+            print(f"warning: {option_string} is deprecated, use {new} (the old spelling works for this release)",
+                  file=sys.stderr)
+            super().__call__(parser, namespace, values, option_string)
+
+    return Deprecated
+
+
+# --- value types: each refuses what makes no sense with a one-line usage error --------------------------
+
+def number(lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False, integer: bool = False):
+    """An argparse type: a finite number in [lo, hi] (or (lo, hi] with ``lo_open``)."""
+
+    def parse(text: str):
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {'a whole number' if integer else 'a number'}") from None
+        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
+            left = "(" if lo_open else "["
+            raise argparse.ArgumentTypeError(f"{text!r} is outside {left}{lo:g}, {hi:g}]")
+        return v
+
+    return parse
+
+
+seed_type = number(0, MAX_SEED, integer=True)
+positive = number(0.0, lo_open=True)
+count_type = number(1, 10**9, integer=True)
+
+
+# --- option groups -------------------------------------------------------------------------------------
+
+def add_world(p: argparse.ArgumentParser, track_default: str | None = "default", robot: bool = True) -> None:
+    """--track, --metres-per-pixel, --robot: the robot and the floor it runs on."""
+    p.add_argument("--track", default=track_default, metavar="NAME|PNG",
+                   help="built-in track (default, oval, circle, chicane) or an image of a dark closed line")
+    p.add_argument("--metres-per-pixel", type=number(0.0, 0.1, lo_open=True), metavar="M",
+                   help="scale of an image track without DPI metadata [m]")
+    if robot:
+        p.add_argument("--robot", metavar="URDF", help="a differential-drive URDF instead of the generated robot")
+
+
+def add_values(p: argparse.ArgumentParser, set_help: str = "a model-space parameter (see 'graph'), repeatable") -> None:
+    """--gains, --params, --set: parameter values, applied in that order (--set wins)."""
+    p.add_argument("--gains", metavar="FILE.json", help="control gains (control.*), e.g. written by the tuner")
+    p.add_argument("--params", metavar="FILE.json", help="a parameter file of any addresses, e.g. written by align")
+    p.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help=set_help + "; applied last")
+
+
+def add_seed(p: argparse.ArgumentParser, default: int, help: str = "sensor-noise seed (same seed, bit-identical laps)") -> None:
+    p.add_argument("--seed", type=seed_type, default=default, metavar="N", help=f"{help}; 0 … 2^64−1")
+
+
+def add_search(p: argparse.ArgumentParser, help: str) -> None:
+    """--param ADDRESS (repeatable) and --bounds ADDRESS=LO,HI: what a search varies, and where."""
+    p.add_argument("--param", action="append", metavar="ADDRESS", help=help)
+    p.add_argument("--parameter", dest="param", action=deprecated(argparse._AppendAction, "--param"), help=argparse.SUPPRESS)
+    p.add_argument("--bounds", action="append", metavar="ADDRESS=LO,HI", help="search range of a --param, repeatable")
+
+
+def add_workers(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--workers", type=number(0, 1024, integer=True), default=0, metavar="N",
+                   help=f"{what} in parallel (0: one per core); results do not depend on it")
+
+
+def add_out(p: argparse.ArgumentParser, what: str, metavar: str, required: bool = False) -> None:
+    p.add_argument("-o", "--out", required=required, metavar=metavar, help=f"write {what} here (a new file, or one this "
+                   "program wrote)")
+
+
+def add_out_dir(p: argparse.ArgumentParser, what: str, default: str | None) -> None:
+    p.add_argument("--out-dir", default=default, metavar="DIR",
+                   help=f"write {what} into this folder (new, empty, or one this program wrote)")
+
+
+def add_json(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="print one JSON document on stdout (everything else on stderr)")
+
+
+def add_recording(p: argparse.ArgumentParser, what: str, view: bool = True) -> None:
+    p.add_argument("--save", metavar="FILE.rrd", help=f"write a rerun recording of {what}")
+    if view:
+        p.add_argument("--view", action="store_true", help=f"show {what} in the rerun viewer (needs a display)")
+
+
+def add_verbose(p: argparse.ArgumentParser, quiet: bool = False) -> None:
+    p.add_argument("-v", "--verbose", action="store_true", help="log what happens (stderr)")
+    if quiet:
+        p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+# --- parsing flag text ---------------------------------------------------------------------------------
+
+def parse_assignments(items: Sequence[str] | None, flag: str = "--set") -> dict[str, str]:
+    """``["motion.mu=0.6", ...]`` → {"motion.mu": "0.6"}; the values are checked by the model space."""
+    out: dict[str, str] = {}
+    for item in items or ():
+        address, sep, value = item.partition("=")
+        if not sep or not address.strip() or not value.strip():
+            raise TwinError(f"{flag} {item!r}: expected ADDRESS=VALUE, e.g. motion.mu=0.6")
+        out[address.strip()] = value.strip()
+    return out
+
+
+def parse_bounds(items: Sequence[str] | None, addresses: Sequence[str] | None = None) -> dict[str, tuple[float, float]]:
+    """``["control.kp=1,60", ...]`` → {"control.kp": (1.0, 60.0)}; each address must be among ``addresses``
+    when given. The bounds themselves are checked where they are used (the search space, the aligners)."""
+    out = {}
+    for address, text in parse_assignments(items, "--bounds").items():
+        if addresses is not None and address not in addresses:
+            raise TwinError(f"--bounds {address}: not a searched parameter ({', '.join(addresses)})")
+        try:
+            lo, hi = (float(p) for p in str(text).split(","))
+        except ValueError:
+            raise TwinError(f"--bounds {address}={text}: expected LOWER,UPPER, e.g. control.kp=1,60") from None
+        out[address] = (lo, hi)
+    return out
+
+
+def parse_grid(items: Sequence[str] | None) -> dict[str, tuple[float, ...]]:
+    """``["cad.L=0.035,0.045"]`` → {"cad.L": (0.035, 0.045)}."""
+    out: dict[str, tuple[float, ...]] = {}
+    for address, text in parse_assignments(items, "--grid").items():
+        try:
+            values = tuple(float(v) for v in str(text).split(","))
+        except ValueError:
+            raise TwinError(f"--grid {address}={text}: expected comma-separated numbers, e.g. cad.L=0.035,0.045") from None
+        if not all(math.isfinite(v) for v in values):
+            raise TwinError(f"--grid {address}={text}: values must be finite")
+        if len(set(values)) != len(values):
+            raise TwinError(f"--grid {address}={text}: a value is given twice")
+        out[address] = values
+    return out
+
+
+# --- the twin the flags describe -----------------------------------------------------------------------
+
+def twin_from_args(args: argparse.Namespace, track: str | None = None) -> DigitalTwin:
+    """The twin the command line describes: world options, then --gains, --params, then --set (which wins).
+
+    Args:
+      args: parsed options of :func:`add_world` and :func:`add_values` (missing ones are skipped).
+      track: overrides ``args.track`` (e.g. the track a telemetry file names).
+    """
+    twin = DigitalTwin(track=track or getattr(args, "track", None) or "default", robot_urdf=getattr(args, "robot", None),
+                       track_metres_per_pixel=getattr(args, "metres_per_pixel", None))
+    changes: dict = {}
+    if getattr(args, "gains", None):
+        changes.update(load_gains(args.gains, twin.space))
+    if getattr(args, "params", None):
+        changes.update(load_values(args.params, twin.space))
+    changes.update(parse_assignments(getattr(args, "set", None)))
+    twin.update(changes)
+    return twin

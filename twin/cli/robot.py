@@ -1,0 +1,128 @@
+"""``python -m mjcf`` (also ``python -m twin.run generate|convert``): the parametric robot as URDF, or any
+differential-drive URDF as MJCF on a textured track."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+
+from lf_common.files import check_output_file, first_line_is_ours, output_dir
+from mjcf.cad import write_robot
+from mjcf.design import RobotDesign
+from mjcf.errors import MjcfError
+from mjcf.robot_config import RobotConfig
+from mjcf.world import build_world, compile_world, save_xml, write_texture_png
+from motors import POLOLU_MP_6V_30_1
+from twin.cli import options as o
+from twin.cli.guard import run_command
+from twin.cli.output import Output
+from twin.environment import load_track
+from twin.models import default_space
+
+GENERATE_HELP = "write the parametric robot's URDF and meshes into a folder"
+CONVERT_HELP = "convert a differential-drive URDF to MJCF on a track"
+
+
+def add_generate(sub) -> None:
+    g = sub.add_parser("generate", help=GENERATE_HELP, description=GENERATE_HELP + " (robot.urdf + meshes/*.stl).")
+    o.add_out_dir(g, "robot.urdf and meshes/ (required)", None)
+    g.add_argument("-o", "--out", dest="out_dir", action=o.deprecated(argparse._StoreAction, "--out-dir"),
+                   help=argparse.SUPPRESS)
+    g.add_argument("--set", action="append", metavar="cad.NAME=VALUE", help="a design parameter, repeatable")
+    o.add_json(g)
+    o.add_verbose(g)
+    g.set_defaults(run=run_generate)
+
+
+def add_convert(sub) -> None:
+    c = sub.add_parser("convert", help=CONVERT_HELP, description=CONVERT_HELP + "; meshes and the floor texture go "
+                       "to <stem>_assets/ beside the XML.")
+    c.add_argument("urdf", help="robot URDF (relative and package:// mesh paths are resolved)")
+    o.add_out(c, "the MJCF (assets in <stem>_assets/ beside it)", "WORLD.xml", required=True)
+    o.add_world(c, robot=False)
+    c.add_argument("--wheel-joints", metavar="LEFT,RIGHT", help="drive wheel joints (auto-detected if unambiguous)")
+    c.add_argument("--caster", metavar="NAME", help="caster link or collision name (default: names containing 'caster')")
+    c.add_argument("--sensor-link", metavar="LINK", help="link the line sensor mounts on (default: a link named *sensor*)")
+    c.add_argument("--package", action="append", metavar="NAME=DIR", help="where package://NAME lives, repeatable")
+    o.add_json(c)
+    o.add_verbose(c)
+    c.set_defaults(run=run_convert)
+
+
+def _design(assignments: dict) -> RobotDesign:
+    space = default_space()
+    values = {}
+    for address, value in assignments.items():
+        if not address.startswith("cad."):
+            raise MjcfError(f"{address}: not a CAD parameter; known: {', '.join(a for a in space.addresses if a.startswith('cad.'))}")
+        values[address[4:]] = space.parameter(address).check(address, value)
+    return RobotDesign(**values)
+
+
+def run_generate(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    if not args.out_dir:
+        raise MjcfError("generate: give the folder to write with --out-dir DIR")
+    design = _design(o.parse_assignments(args.set))
+    with output_dir(args.out_dir, "robot folder") as tmp:
+        write_robot(design, tmp)
+    urdf = os.path.join(os.path.abspath(args.out_dir), "robot.urdf")
+    out.document({"urdf": urdf, "design": design.__dict__})
+    out.say(f"wrote {urdf}")
+    return 0
+
+
+def robot_config(args: argparse.Namespace) -> RobotConfig:
+    """Which parts of a URDF are the wheels, caster and sensor mount, and where its packages are."""
+    wheels = None
+    if args.wheel_joints:
+        parts = args.wheel_joints.split(",")
+        if len(parts) != 2 or not all(p.strip() for p in parts):
+            raise MjcfError(f"--wheel-joints {args.wheel_joints!r}: expected LEFT,RIGHT")
+        wheels = (parts[0].strip(), parts[1].strip())
+    packages = []
+    for p in args.package or ():
+        name, sep, path = p.partition("=")
+        if not sep or not name or not path:
+            raise MjcfError(f"--package {p!r}: expected NAME=DIR")
+        packages.append((name, path))
+    return RobotConfig(wheel_joints=wheels, caster=args.caster, sensor_link=args.sensor_link, package_dirs=tuple(packages))
+
+
+def run_convert(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    check_output_file(args.out, first_line_is_ours, "MJCF file")
+    config = robot_config(args)
+    space = default_space()
+    track, texture = load_track(args.track, space.get("environment.line_width"),
+                                space.get("environment.texture_resolution"), args.metres_per_pixel)
+    with tempfile.TemporaryDirectory() as tmp:
+        png = os.path.join(tmp, f"{track.name}.png")
+        write_texture_png(texture, png)
+        spec, info = build_world(args.urdf, texture, png, track.start_pose(), POLOLU_MP_6V_30_1.constants(), config=config)
+        model = compile_world(spec, args.urdf)
+        xml = save_xml(spec, args.out)
+    summary = {
+        "xml": xml, "bodies": model.nbody - 1, "mass_kg": float(model.body_subtreemass[1]),
+        "wheel_joints": list(info.wheel_joints), "wheel_radius_m": info.wheel_radius, "half_track_m": info.half_track,
+        "caster_geoms": list(info.caster_geoms), "sensor_body": info.sensor_body, "notes": list(info.notes),
+    }
+    out.document(summary)
+    out.say(f"wrote {xml}: {summary['bodies']} bodies, {summary['mass_kg']:.4f} kg, wheels {', '.join(info.wheel_joints)} "
+            f"(R = {info.wheel_radius * 1000:.1f} mm, L = {info.half_track * 1000:.1f} mm)")
+    for n in info.notes:
+        out.say(f"note: {n}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m mjcf``."""
+    p = o.Parser(prog="python -m mjcf", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    add_generate(sub)
+    add_convert(sub)
+    args = p.parse_or_exit_code(argv)
+    if isinstance(args, int):
+        return args
+    return run_command(args.run, args)

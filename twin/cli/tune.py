@@ -1,0 +1,153 @@
+"""``python -m tuner`` (also ``python -m twin.run tune``): tune the control gains (Eq. 13) of a robot on a track
+by gradient descent on the lap time (Eq. 12).
+
+With no options it tunes v_max, K_B, K_P, K_I, K_D of the default robot on the default track from the default
+gains. Ctrl-C stops after the current iteration, reports, and writes the best values found so far.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+
+from lf_common.files import check_output_file, json_is_ours
+from twin import recording
+from twin.cli import options as o
+from twin.cli.guard import run_command
+from twin.cli.output import Output
+from twin.closed_loop import run_laps
+from twin.parameter_files import save_values
+from tuner.gradient import DescentOptions, descend, sequential
+from tuner.objective import LapObjective
+from tuner.recording import save_tuning
+from tuner.space import SearchSpace, TunerError
+
+HELP = "tune the gains (default: v_max, K_B, K_P, K_I, K_D) by gradient descent on the lap time"
+
+
+class _StopRequest:
+    """The first Ctrl-C asks the search to stop after the current iteration; a second one stops at once."""
+
+    def __init__(self):
+        self.requested = False
+
+    def __call__(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        print("\nstopping after this iteration (Ctrl-C again to abort)", file=sys.stderr)
+
+
+class _Stop(Exception):
+    pass
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--method", choices=("batch", "sequential"), default="batch",
+                   help="batch: gradient and line search as parallel batches; sequential: the paper's one lap at a time")
+    o.add_search(p, "a parameter to tune, repeatable (default: control.v_max, kb, kp, ki, kd); any address that can "
+                    "differ between the laps of one batch")
+    o.add_world(p)
+    o.add_values(p, "a fixed model-space parameter, repeatable")
+    o.add_seed(p, 0, "sensor-noise seed, shared by every lap")
+    p.add_argument("--max-iter", type=o.count_type, default=30, metavar="N", help="iteration cap")
+    o.add_workers(p, "laps of a batch (threads)")
+    p.add_argument("--threads", dest="workers", type=o.number(0, 1024, integer=True),
+                   action=o.deprecated(argparse._StoreAction, "--workers"), help=argparse.SUPPRESS)
+    o.add_out(p, "the best values: a gains file (--gains) for control.* parameters, else a parameter file (--params)",
+              "FILE.json")
+    o.add_json(p)
+    o.add_recording(p, "the tuning run (lap time and parameters per iteration, best lap)")
+    o.add_verbose(p, quiet=True)
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("tune", help=HELP, description=__doc__)
+    add_arguments(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    if args.out:
+        check_output_file(args.out, json_is_ours, "parameter file")
+    recording.check_targets(args.save, args.view)
+    twin = o.twin_from_args(args)
+    space = SearchSpace(twin.space, args.param or (), o.parse_bounds(args.bounds))
+    x0 = space.start(twin.space)
+    objective = LapObjective(twin, space, seed=args.seed, nthread=args.workers)
+    stop = _StopRequest()
+    previous = signal.signal(signal.SIGINT, stop)
+    t0 = time.perf_counter()
+    from tqdm import tqdm
+
+    bar = tqdm(total=args.max_iter, desc=f"tuning ({args.method})", unit="it", file=sys.stderr, disable=args.quiet or None)
+    iterations = []
+
+    def on_iteration(it):
+        iterations.append(it)
+        bar.update(1)
+        bar.set_postfix_str(f"lap {objective.best.cost:.3f} s, {objective.laps} laps")
+        if stop.requested:
+            raise _Stop
+
+    search = descend if args.method == "batch" else sequential
+    interrupted = False
+    try:
+        result = search(objective, space.to_unit(x0), DescentOptions(max_iter=args.max_iter), on_iteration=on_iteration)
+        converged, reason = result.converged, result.reason
+    except (_Stop, KeyboardInterrupt):
+        interrupted, converged, reason = True, False, "interrupted"
+    finally:
+        bar.close()
+        signal.signal(signal.SIGINT, previous)
+    wall = time.perf_counter() - t0
+    best = objective.best
+    if best is None:
+        raise TunerError("interrupted before the first lap finished: nothing to report")
+    values = space.assignments(best.x)
+    final = best.lap
+    summary = {
+        "method": args.method, "initial_lap_time_s": objective.first.lap.lap_time_s, "initial_cost_s": objective.first.cost,
+        "final_lap_time_s": final.lap_time_s, "final_cost_s": best.cost, "completed": final.completed,
+        "iterations": len(iterations), "laps_simulated": objective.laps, "wall_s": wall, "values": values,
+        "converged": converged, "reason": reason, "interrupted": interrupted, "seed": args.seed,
+        "track": twin.track.name, "out": None, "recording": None,
+        "loads_with": "--gains" if all(a.startswith("control.") for a in values) else "--params",
+    }
+    if all(a.startswith("control.") for a in values):
+        summary["gains"] = values
+    if args.out:
+        summary["out"] = save_values(args.out, values, method=args.method, track=twin.track.name,
+                                     lap_time_s=final.lap_time_s, seed=args.seed, converged=converged)
+    if args.save or args.view:
+        twin.update(values)
+        best_lap = run_laps(twin, [{}], seed=args.seed)[0]
+        summary["recording"] = save_tuning(args.save, args.view, twin, space, iterations, best_lap)
+    out.document(summary)
+    t_final = f"{final.lap_time_s:.3f} s" if final.completed else f"not completed ({final.failure})"
+    out.say(f"{args.method}: lap {objective.first.cost:.3f} s → {t_final} in {len(iterations)} iterations, "
+            f"{objective.laps} laps, {wall:.1f} s ({reason})")
+    out.say("values: " + ", ".join(f"{a}={v:.4g}" for a, v in values.items()))
+    if summary["out"]:
+        out.say(f"wrote {summary['out']} (load it with {summary['loads_with']})")
+    if summary["recording"]:
+        out.say(f"recording: {summary['recording']}")
+    return 130 if interrupted else 0
+
+
+def parser() -> o.Parser:
+    """``python -m tuner``'s parser."""
+    p = o.Parser(prog="python -m tuner", description=__doc__)
+    add_arguments(p)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m tuner``."""
+    args = parser().parse_or_exit_code(argv)
+    if isinstance(args, int):
+        return args
+    return run_command(run, args)
