@@ -93,12 +93,14 @@ def log_track(rec: rr.RecordingStream, track: Track, texture: FloorTexture) -> N
 
 
 def check_targets(save: str | None, view: bool) -> None:
-    """Before any work: the recording can be written where asked, and a viewer can open if asked."""
+    """Before any work: the recording can be written where asked, and a viewer exists if asked. Without a
+    display, ``view`` alone is refused now; with ``save`` the work is done and saved first (see :func:`recording`)."""
     if save:
         check_output_file(save, rrd_is_ours, "recording")
     if view:
-        viewer.require_display()
         viewer.viewer_executable()
+        if not save:
+            viewer.require_display()
 
 
 @contextlib.contextmanager
@@ -107,17 +109,19 @@ def recording(save: str | None, view: bool, blueprint: rrb.Blueprint, app_id: st
 
     The file is written under a temporary name and renamed into place when the ``with`` block completes, and
     replaces only a recording this program wrote; a failure leaves no file. With ``view`` alone nothing is
-    written to disk: the data streams to the viewer.
+    written to disk: the data streams to the viewer. With ``view`` but no display, the recording is saved and
+    then the missing display is reported (TwinError): the work is kept, the window could not open.
     """
     if not save and not view:
         yield None
         return
     check_targets(save, view)
+    show = view and viewer.has_display()
     with contextlib.ExitStack() as stack:
         sinks = []
         if save:
             sinks.append(rr.FileSink(stack.enter_context(atomic_path(save, rrd_is_ours, "recording"))))
-        if view:
+        if show:
             sinks.append(rr.GrpcSink(viewer.spawn_for_stream()))
         rec = rr.RecordingStream(app_id)
         rec.set_sinks(*sinks, default_blueprint=blueprint)
@@ -126,6 +130,8 @@ def recording(save: str | None, view: bool, blueprint: rrb.Blueprint, app_id: st
         finally:
             rec.flush()
             rec.disconnect()
+    if view and not show:
+        viewer.require_display(os.path.abspath(save))  # saved above; now say why no window opened
 
 
 @contextlib.contextmanager

@@ -26,13 +26,19 @@ def viewer_executable() -> str:
     raise TwinError("rerun viewer: no 'rerun' executable beside this Python or on PATH (pip install rerun-sdk)")
 
 
-def require_display() -> None:
-    """Refuse to start a window where none can open (no X11 or Wayland display on Linux)."""
-    if sys.platform.startswith(("linux", "freebsd", "openbsd")) and not (
-        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-    ):
-        raise TwinError("rerun viewer: no display here (DISPLAY and WAYLAND_DISPLAY are unset); use --save FILE.rrd "
-                        "and open it where there is one, or serve it with: rerun --serve-web FILE.rrd")
+def has_display() -> bool:
+    """Whether a window can open here (on Linux and BSD: an X11 or Wayland display is set)."""
+    return not sys.platform.startswith(("linux", "freebsd", "openbsd")) or bool(
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def require_display(saved: str | None = None) -> None:
+    """Refuse to start a window where none can open; ``saved``: the recording already written."""
+    if has_display():
+        return
+    where = f"{saved} is saved: open it" if saved else "use --save FILE.rrd and open it"
+    raise TwinError(f"rerun viewer: no display here (DISPLAY and WAYLAND_DISPLAY are unset); {where} where there is one, "
+                    "or serve it to a browser with: rerun --serve-web FILE.rrd")
 
 
 def check_recording(path: str) -> None:
@@ -70,4 +76,4 @@ def spawn_for_stream() -> str:
     return f"rerun+http://127.0.0.1:{VIEWER_PORT}/proxy"
 
 
-__all__ = ["check_recording", "open_files", "require_display", "rrd_is_ours", "spawn_for_stream", "viewer_executable"]
+__all__ = ["check_recording", "has_display", "open_files", "require_display", "rrd_is_ours", "spawn_for_stream", "viewer_executable"]
