@@ -36,7 +36,10 @@ def test_unexplained_lap_time_is_reported_with_the_reachable_range():
     r = align_lap_time(t, 15.7)
     assert not r.explained and r.value is None
     lo, hi = r.reachable_s
-    assert 13.0 < lo <= hi < 13.6 and "explains" in r.message and "slower" in r.message
+    # no lap is faster than the track at v_max (hand calculation: 7.18 m / 0.6 m/s = 11.96 s), and every lap the
+    # scan found is faster than the measurement, which is why nothing explains it
+    assert t.track.length_m / t.space.get("control.v_max") < lo <= hi < 15.7
+    assert "explains" in r.message and "slower" in r.message
 
 
 def test_flat_lap_time_is_not_identifiable(fast_twin):

@@ -8,8 +8,9 @@ from mjcf.world import AXLE_SITE, MOTORS
 from twin.digital_twin import DigitalTwin
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def twin():
+    """A twin of its own per test: tests set motion.mu on it (the robot and texture come from the disk cache)."""
     return DigitalTwin(track="circle")
 
 

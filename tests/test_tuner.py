@@ -10,6 +10,7 @@ import pytest
 from twin.cli.tune import main as tuner_main
 from tuner.gradient import DescentOptions, central_difference, descend, sequential
 from tuner.objective import PENALTY_S, SLOW_SPEED, LapObjective, lap_cost
+from twin.errors import TwinError
 from tuner.space import SearchSpace, TunerError
 from twin.digital_twin import DigitalTwin
 from twin.run import main as twin_main
@@ -95,7 +96,7 @@ def test_bad_search_input_is_refused(twin):
         SearchSpace(twin.space, ["control.kp"], {"control.kp": (60.0, 1.0)})
     with pytest.raises(TunerError, match="rebuilds"):
         SearchSpace(twin.space, ["cad.L"])
-    with pytest.raises(Exception, match="unknown parameter address"):
+    with pytest.raises(TwinError, match="unknown parameter address"):
         SearchSpace(twin.space, ["control.kq"])
     with pytest.raises(TunerError, match="must be a finite number"):
         SearchSpace(twin.space, ["control.kp"], {"control.kp": (float("nan"), 5.0)})
