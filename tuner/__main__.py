@@ -1,16 +1,11 @@
-"""``python -m tuner``: tune the gains (see :mod:`twin.cli.tune`).
-
-Only the command line is imported here; Ctrl-C while it loads is a clean exit (:func:`twin.cli.guard.startup_failed`).
-"""
+"""``python -m tuner``: tune the gains (see :mod:`twin.cli.tune`)."""
 
 import sys
 
-from twin.cli.guard import startup_failed
+from twin.cli.startup import loading
 
-try:
+with loading():  # Ctrl-C while the libraries load: exit 130 at once, no traceback
     from twin.cli.tune import main
-except (KeyboardInterrupt, ImportError) as e:
-    sys.exit(startup_failed(e))
 
 if __name__ == "__main__":
     sys.exit(main())

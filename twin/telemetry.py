@@ -59,7 +59,7 @@ class Telemetry:
 def _number(path: str, n: int, obj: dict, key: str) -> float:
     v = obj.get(key)
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise TwinError(f"{path}:{n}: field {key!r} must be a finite number, got {v!r}")
+        raise TwinError(f"{path}:{n}: field {key!r} must be a finite number, got {str(v)[:40]!r}")
     return float(v)
 
 
@@ -72,8 +72,8 @@ def _check_header(path: str, n: int, obj: dict) -> dict:
         _number(path, n, obj, key)
     if "track" in obj and not isinstance(obj["track"], str):
         raise TwinError(f"{path}:{n}: \"track\" must be a track name or image path, got {str(obj['track'])[:40]!r}")
-    gains = obj.get("gains")
-    if gains is not None:
+    if "gains" in obj:
+        gains = obj["gains"]
         if not isinstance(gains, dict):
             raise TwinError(f"{path}:{n}: \"gains\" must be an object of control.* numbers")
         for address in gains:

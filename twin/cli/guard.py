@@ -76,12 +76,3 @@ def run_command(command: Callable[[argparse.Namespace], int], args: argparse.Nam
                     "-v shows the traceback")
     finally:
         signal.signal(signal.SIGTERM, previous)
-
-
-def startup_failed(error: BaseException) -> int:
-    """For the ``python -m`` entry shims: Ctrl-C while the libraries load is a clean exit, and a stale or
-    missing build of the C core (ImportError) one error line, not a traceback. Returns the exit code."""
-    if isinstance(error, KeyboardInterrupt):
-        print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    return fail(f"cannot start: {error}")

@@ -1,0 +1,28 @@
+"""The first instant of every ``python -m`` entry: while the libraries load (about a second: MuJoCo, SciPy,
+rerun), Ctrl-C must neither leave a traceback nor break a half-imported library, so it ends the process at once
+(nothing has been written yet) with status 130. Imports nothing but the standard library's basics."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+
+
+def _leave(signum, frame) -> None:
+    os.write(2, b"interrupted\n")
+    os._exit(130)
+
+
+@contextlib.contextmanager
+def loading():
+    """Ctrl-C ends the process at once inside this block; a failed import is one ``error:`` line, exit 2."""
+    previous = signal.signal(signal.SIGINT, _leave)
+    try:
+        yield
+    except ImportError as e:  # a stale or missing build of the C core, or a missing dependency
+        print(f"error: cannot start: {e}", file=sys.stderr)
+        sys.exit(2)
+    finally:
+        signal.signal(signal.SIGINT, previous)
