@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import types
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from mjcf.track import builtin
 from twin import core
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
+from twin.errors import TwinError
 from twin.lap import COL, LapJudge, LapLimits
 from twin.run import main
 
@@ -92,6 +94,34 @@ def test_batched_laps_equal_laps_run_one_by_one(twin):
         assert np.array_equal(alone.trace.records, batched.trace.records), v
         assert alone.summary() == batched.summary()
     assert twin.space.get("motion.mu") == 0.9  # variants do not leak into the twin
+
+
+def test_variants_never_write_to_the_twin():
+    """A variant is derived from a mapping of values: the twin's values and model fields are never touched,
+    not even for the duration of the batch (another thread may read them)."""
+    t = DigitalTwin()
+    model = t.model()
+    fields = {f: getattr(model, f).copy() for f in ("geom_friction", "actuator_gainprm", "actuator_dynprm", "actuator_gear")}
+    before = dict(t.space.values)
+    t.space.values = types.MappingProxyType(before)  # any write to the twin's values raises
+    mixed = run_laps(t, [{"motion.mu": 0.4, "motor.R_M": 10.0, "control.kp": 20.0, "sensor.noise": 0.05}, {}],
+                     keep_traces=False)
+    assert mixed[0].parameters["motor.R_M"] == 10.0 and mixed[1].parameters["motor.R_M"] == before["motor.R_M"]
+    assert mixed[0].lap_time_s != mixed[1].lap_time_s
+    for name, value in fields.items():
+        assert np.array_equal(getattr(model, name), value), name
+    assert t.rebuilds == 1
+
+
+@pytest.mark.parametrize("change, needle", [
+    ({"cad.L": 0.05}, "cad.L: rebuilds the robot or track"),
+    ({"motor.L_M": 0.0}, "motor.L_M: switching between zero and non-zero"),
+    ({"control.kp": -1.0}, "control.kp:"),
+])
+def test_a_variant_that_cannot_share_the_batch_is_one_line(twin, change, needle):
+    with pytest.raises(TwinError) as e:
+        run_laps(twin, [{}, change])
+    assert needle in str(e.value) and "\n" not in str(e.value)
 
 
 def test_sensor_count_is_a_model_parameter():

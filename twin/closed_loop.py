@@ -9,14 +9,14 @@ and each one is bit-identical to running it alone: its state never mixes with an
 Phases of a lap, as on the real robot: calibrate by turning in place over the start line (Eq. 8's min and
 max), then be put back on the start line, and follow the line until the lap ends. Laps that differ only in
 their gains calibrate identically, so each distinct calibration is simulated once per build of the twin and
-reused (bit-identical to simulating it again).
+reused (bit-identical to simulating it again). A turn longer than ``LapLimits.calibration_timeout_s`` is not
+simulated at all: its laps fail at once.
 """
 
 from __future__ import annotations
 
 import copy
 import ctypes
-import dataclasses
 import logging
 from typing import Callable, Mapping, Sequence
 
@@ -29,21 +29,139 @@ from twin import core
 from twin.controller import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
 from twin.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
-from twin.lap import CALIBRATION, DIVERGED, LapJudge, LapLimits, LapResult
-from twin.model_space import ChangeCost
+from twin.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
+from twin.variant import Variant, field_key
 
 log = logging.getLogger(__name__)
 
 CHUNK_TICKS = 320  # control ticks per batch call at most (1.6 s at 5 ms): Python runs once per chunk, not per step
 MIN_CHUNK_TICKS = 10  # near the finish, chunks shrink to what could still finish the lap, but not below this
 SEED_SALT = 0x5DEECE66D  # mixes the user's seed into the C generator's state
+SEED_MAX = 2**64 - 1  # the C generator's state is a uint64
 
 
-def _setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: ControlParams, sensor, seed: int) -> core.Sim:
+def run_laps(
+    twin: DigitalTwin,
+    variants: Sequence[Mapping[str, float]] = ({},),
+    seed: int = 0,
+    limits: LapLimits = LapLimits(),
+    nthread: int = 0,
+    keep_traces: bool = True,
+    on_chunk: Callable[[float, int], None] | None = None,
+    reuse_calibration: bool = True,
+) -> list[LapResult]:
+    """Run one lap per variant, all at once, and return their results in order.
+
+    Args:
+      twin: the robot on its track; its current values are every lap's base. It is not changed.
+      variants: per lap, addresses to change from the base (``control.*``, ``sensor.*`` other than count and
+        pitch, ``motion.*``, ``motor.*``); the robot and track (``cad.*``, ``environment.*``) are shared.
+      seed: noise seed in [0, 2**64 − 1]; every lap gets the same noise stream (common random numbers).
+      limits: failure thresholds.
+      nthread: threads of the batch, 0 for all cores. Results do not depend on it.
+      keep_traces: keep each lap's per-tick trace (memory: ~400 B per tick per lap).
+      on_chunk: called after each batch call with (simulated seconds of the slowest lap, laps still running).
+      reuse_calibration: use a calibration turn this twin already simulated (bit-identical); False simulates
+        every distinct turn again, e.g. to time it.
+    """
+    if not variants:
+        return []
+    check_seed(seed)
+    model = twin.model()
+    laps = [Variant.of(twin, v) for v in variants]
+    core.install_callback()
+    fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seed,
+                  [LapJudge(twin.track, limits, keep_traces) for _ in laps])
+    _refuse_long_turns(fleet, limits)
+    keys = [lap.calibration_key(seed) for lap in laps]
+    turns = twin.calibrations.of(twin.rebuilds) if reuse_calibration else {}
+    failed = _calibrate(fleet, keys, turns)
+    cal = _start_laps(fleet, keys, turns, failed, limits)
+    _drive(fleet, twin.track.length_m, on_chunk)
+    return [j.result(lap.params.count, *cal[i], lap.values) for i, (j, lap) in enumerate(zip(fleet.judges, laps))]
+
+
+def check_seed(seed) -> None:
+    """A noise seed must be a whole number in [0, 2**64 − 1]: larger ones would wrap onto smaller ones' noise."""
+    if not isinstance(seed, (int, np.integer)) or not 0 <= seed <= SEED_MAX:
+        raise TwinError(f"seed: must be a whole number in [0, 2**64 - 1], got {seed!r}")
+
+
+def _batch(twin: DigitalTwin, model: mujoco.MjModel, laps: list[Variant], nthread: int) -> mujoco.batch.Batch:
+    """The twin's batch, holding each lap's model fields (one model shared by laps whose fields agree)."""
+    batch = twin.batches.get(twin.rebuilds, model, len(laps), nthread)
+    base = field_key(twin, twin.space.values)
+    if all(lap.field_key == base for lap in laps):
+        # a Batch simulates a copy of the model it was made with: hand it the twin's model as it is now, so a
+        # field the twin changed since (motion.mu, motor.*) is the one simulated
+        batch.set_models(model)
+        return batch
+    models: dict[tuple, mujoco.MjModel] = {}
+    for lap in laps:
+        if lap.field_key not in models:
+            models[lap.field_key] = copy.copy(model)
+            apply_fields(models[lap.field_key], twin.info, lap.motor, lap.physics)
+    batch.set_models([models[lap.field_key] for lap in laps])
+    return batch
+
+
+class Fleet:
+    """The laps' simulations in one batch: their userdata heads, their judges, stepping and draining them."""
+
+    def __init__(self, twin: DigitalTwin, model: mujoco.MjModel, batch: mujoco.batch.Batch, laps: list[Variant],
+                 seed: int, judges: list[LapJudge]):
+        self.twin, self.model, self.batch, self.laps, self.seed, self.judges = twin, model, batch, laps, seed, judges
+        self.steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]  # physics steps per tick
+        self.sims: list[core.Sim] = []
+        self.consumed = np.zeros(len(laps), dtype=np.int64)  # records each judge has read
+
+    def reset(self) -> None:
+        """Every simulation on the start line with a fresh head, uncalibrated and in the calibration phase."""
+        self.batch.reset(keyframe=np.full(len(self.laps), self.model.key(START_KEY).id), stage=mujoco.mjtStage.mjSTAGE_NONE)
+        rows = self.batch.userdata  # (nsim, nuserdata), live view of the state rows
+        self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seed)
+                     for i, lap in enumerate(self.laps)]
+
+    def step(self, ids: np.ndarray, nstep: int) -> None:
+        """Step some simulations; a lap ends as ``diverged`` where MuJoCo raises or the state turns non-finite,
+        and as ``refused`` where the C loop refused its userdata."""
+        try:
+            self.batch.step(ids=ids, nstep=nstep)
+        except mujoco.batch.SimulationError as e:
+            for i in e.ids:
+                self._fail(int(i), DIVERGED, f"MuJoCo: {self.batch.error(int(i))}")
+        finally:
+            core.flush_mujoco_log()
+        for i in ids:
+            why = core.refusal(self.sims[i])
+            if why:
+                self._fail(int(i), REFUSED, why)
+        for i in ids[~np.isfinite(self.batch.qpos[ids]).all(axis=1)]:
+            self._fail(int(i), DIVERGED, "the physics produced a non-finite state")
+
+    def _fail(self, i: int, code: str, detail: str) -> None:
+        self.judges[i].fail(code, detail, float(self.batch.time[i]), 0.0)
+
+    def drain(self, ids: list[int]) -> None:
+        """Feed each running lap's judge the trace records written since the last drain."""
+        rows = self.batch.userdata
+        for i in ids:
+            if self.judges[i].done:
+                continue
+            sim, capacity = self.sims[i], self.sims[i].record_capacity
+            written = sim.records_written
+            if written - self.consumed[i] > capacity:
+                raise TwinError(f"lap {i}: trace ring overflowed ({written - self.consumed[i]} records for {capacity} slots)")
+            self.judges[i].feed(core.records_view(rows[i])[np.arange(self.consumed[i], written) % capacity])
+            self.consumed[i] = written
+
+
+def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: ControlParams, sensor, seed: int) -> core.Sim:
     """Write one simulation's userdata head: where to find things in the model, and what to run."""
     row[:] = 0.0
     sim = core.sim_view(row)
     sim.magic, sim.layout_version, sim.nsensor = core.MAGIC, core.LAYOUT_VERSION, params.count
+    sim.model_signature[:] = core.model_signature(model)
     for i in range(params.count):
         sim.sensor_site[i] = model.site(LINE_SENSOR.format(i)).id
     sim.sensor_body = model.body(twin.info.sensor_body).id
@@ -61,14 +179,14 @@ def _setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: Co
     sim.timestep = model.opt.timestep
     sim.sensor = core.sensor_to_c(sensor)
     sim.firmware = core.params_to_c(params)
-    sim.seed = (int(seed) * SEED_SALT + 1) & (2**64 - 1)
+    sim.seed = (int(seed) * SEED_SALT + 1) & SEED_MAX
     sim.rng = sim.seed
     core.lib.lf_calibrate_reset(ctypes.byref(sim.fw), int(sensor.timeout_us))
-    _start_phase(sim, CALIBRATE)
+    start_phase(sim, CALIBRATE)
     return sim
 
 
-def _start_phase(sim: core.Sim, mode: int) -> None:
+def start_phase(sim: core.Sim, mode: int) -> None:
     """Begin calibration or the lap at simulated time 0 (the calibration and the RNG state carry over)."""
     core.lib.lf_reset(ctypes.byref(sim.fw), mode)
     sim.ticks = sim.records_written = 0
@@ -76,112 +194,55 @@ def _start_phase(sim: core.Sim, mode: int) -> None:
     sim.phase_start_time = sim.last_time = sim.energy_j = sim.offset_abs_sum_m = sim.offset_abs_max_m = 0.0
 
 
-class Variant:
-    """One lap's parameters: the twin's values with some addresses changed (controller or model fields)."""
-
-    def __init__(self, twin: DigitalTwin, changes: Mapping[str, float]):
-        base = dict(twin.space.values)
-        try:
-            for address, value in changes.items():
-                if twin.set(address, value) is ChangeCost.REBUILD and twin.space.values[address] != base[address]:
-                    raise TwinError(
-                        f"{address}: rebuilds the robot or track, so it cannot vary between the laps of one batch"
-                    )
-            self.values = dict(twin.space.values)
-            self.params = twin.control_params()
-            self.sensor = twin.sensor_model()
-            self.motor, self.physics = twin.motor(), twin.physics()
-            self.field_key = tuple(
-                v for a, v in self.values.items() if twin.space.parameter(a).cost is ChangeCost.MODEL_FIELD
-            )
-        finally:
-            twin.space.values.update(base)
-            twin.model()  # puts the base values back into the shared model's fields
+# --- the calibration turn
+def _refuse_long_turns(fleet: Fleet, limits: LapLimits) -> None:
+    """End, before any simulation, the laps whose turn would take longer than the limit (no wall time spent)."""
+    for lap, judge in zip(fleet.laps, fleet.judges):
+        seconds = calibration_ticks(lap.params) * lap.params.dt_s
+        if seconds > limits.calibration_timeout_s:
+            judge.fail(CALIBRATION, f"the calibration turn would take {seconds:.6g} s (limit {limits.calibration_timeout_s:g} s "
+                       "simulated): raise control.cal_duty or control.full_speed, or lower control.cal_sweep or "
+                       "control.cal_sweeps", 0.0, 0.0)
 
 
-def run_laps(
-    twin: DigitalTwin,
-    variants: Sequence[Mapping[str, float]] = ({},),
-    seed: int = 0,
-    limits: LapLimits = LapLimits(),
-    nthread: int = 0,
-    keep_traces: bool = True,
-    on_chunk: Callable[[float, int], None] | None = None,
-    reuse_calibration: bool = True,
-) -> list[LapResult]:
-    """Run one lap per variant, all at once, and return their results in order.
-
-    Args:
-      twin: the robot on its track; its current values are every lap's base.
-      variants: per lap, addresses to change from the base (``control.*``, ``sensor.*`` other than count and
-        pitch, ``motion.*``, ``motor.*``); the robot and track (``cad.*``, ``environment.*``) are shared.
-      seed: noise seed; every lap gets the same noise stream (common random numbers).
-      limits: failure thresholds.
-      nthread: threads of the batch, 0 for all cores. Results do not depend on it.
-      keep_traces: keep each lap's per-tick trace (memory: ~400 B per tick per lap).
-      on_chunk: called after each batch call with (simulated seconds of the slowest lap, laps still running).
-      reuse_calibration: use a calibration turn this twin already simulated (bit-identical); False simulates
-        every distinct turn again, e.g. to time it.
-    """
-    if not variants:
-        return []
-    if not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise TwinError(f"seed: must be a whole number >= 0, got {seed!r}")
-    model = twin.model()
-    base_key = Variant(twin, {}).field_key
-    laps = [Variant(twin, v) for v in variants]
-    nsim = len(laps)
-    batch = _batch(twin, model, nsim, nthread)
-    if any(lap.field_key != base_key for lap in laps):
-        models: dict[tuple, mujoco.MjModel] = {}
-        for lap in laps:
-            if lap.field_key not in models:
-                m = copy.copy(model)
-                apply_fields(m, twin.info, lap.motor, lap.physics)
-                models[lap.field_key] = m
-        batch.set_models([models[lap.field_key] for lap in laps])
-    else:
-        # a Batch simulates a copy of the model it was made with: hand it the twin's model as it is now, so a
-        # field the twin changed since (motion.mu, motor.*) is the one simulated
-        batch.set_models(model)
-    core.install_callback()
-    key = np.full(nsim, model.key(START_KEY).id)
-    judges = [LapJudge(twin.track, limits, keep_traces) for _ in laps]
-
-    # --- calibration: turn in place over the start line. Laps that differ only in gains calibrate identically
-    # (the turn does not use them), so each distinct calibration runs once and is kept on the twin.
-    done = _calibrations(twin) if reuse_calibration else {}
-    cal_keys = [_calibration_key(lap, seed) for lap in laps]
-    steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]
-    batch.reset(keyframe=key, stage=mujoco.mjtStage.mjSTAGE_NONE)
-    userdata = batch.userdata  # (nsim, nuserdata), live view of the state rows
-    sims = [_setup(userdata[i], model, twin, lap.params, lap.sensor, seed) for i, lap in enumerate(laps)]
-    todo: dict[tuple, int] = {}
-    for i, k in enumerate(cal_keys):
-        if k not in done and k not in todo:
+def _calibrate(fleet: Fleet, keys: list[tuple], turns: dict) -> dict[tuple, tuple]:
+    """Simulate each distinct turn not in ``turns`` once, add what it calibrated to ``turns``, and leave every
+    simulation on the start line. Returns {key: failure outcome} of the turns that failed."""
+    todo: dict[tuple, int] = {}  # key: the lap that turns for all laps with that key
+    for i, k in enumerate(keys):
+        if k not in turns and k not in todo and not fleet.judges[i].done:
             todo[k] = i
-    if todo:
-        ids = np.array(sorted(todo.values()))
-        cal_steps = max((calibration_ticks(laps[i].params) + 2) * steps[i] for i in ids)
-        failed = _step(batch, ids, cal_steps, judges)
-        for k, i in todo.items():
-            s = sims[i]
-            if i in failed:
-                continue  # not kept: every lap with this calibration fails below
-            if s.fw.mode != IDLE:
-                raise TwinError(f"lap {i}: calibration did not finish in {cal_steps} steps")
-            done[k] = (tuple(s.fw.cal_min[: s.nsensor]), tuple(s.fw.cal_max[: s.nsensor]), int(s.rng))
-        batch.reset(keyframe=key, stage=mujoco.mjtStage.mjSTAGE_NONE)  # the turn moved them: back to the start
-        sims = [_setup(userdata[i], model, twin, lap.params, lap.sensor, seed) for i, lap in enumerate(laps)]
+    fleet.reset()
+    if not todo:
+        return {}
+    ids = np.array(sorted(todo.values()))
+    nstep = max((calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i] for i in ids)
+    fleet.step(ids, nstep)
+    failed = {}
+    for k, i in todo.items():
+        s = fleet.sims[i]
+        if fleet.judges[i].done:
+            failed[k] = fleet.judges[i].outcome  # not kept: every lap with this turn fails alike
+        elif s.fw.mode != IDLE:
+            raise TwinError(f"lap {i}: calibration did not finish in {nstep} steps")
+        else:
+            turns[k] = (tuple(s.fw.cal_min[: s.nsensor]), tuple(s.fw.cal_max[: s.nsensor]), int(s.rng))
+    fleet.reset()  # the turn moved them: back to the start
+    return failed
 
-    # --- the lap: on the start line, with the calibration (min, max and the noise generator's state) it made
+
+def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limits: LapLimits) -> list[tuple]:
+    """Put each lap in the run phase with the calibration (min, max and noise generator state) its turn made;
+    a lap whose turn failed or left a sensor with too small a range ends here. Returns (min, max) per lap."""
     cal = []
-    for i, (sim, lap) in enumerate(zip(sims, laps)):
-        if cal_keys[i] not in done:
-            judges[i].fail(DIVERGED, "the calibration turn diverged", 0.0, 0.0)
+    for sim, judge, k in zip(fleet.sims, fleet.judges, keys):
+        if k not in turns:
+            if k in failed:
+                code, detail, t, _, energy = failed[k]
+                judge.fail(code, detail, t, energy)
             cal.append(([], []))
             continue
-        lo, hi, rng = done[cal_keys[i]]
+        lo, hi, rng = turns[k]
         for j, (a, b) in enumerate(zip(lo, hi)):
             sim.fw.cal_min[j], sim.fw.cal_max[j] = a, b
         sim.rng = rng
@@ -189,75 +250,38 @@ def run_laps(
         spans = np.array(hi) - np.array(lo)
         if np.min(spans) < limits.min_calibration_range_us:
             bad = int(np.argmin(spans))
-            judges[i].fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn "
-                           "(turn further: control.cal_sweep, control.cal_duty)", 0.0, 0.0)
-        _start_phase(sim, RUN)
-    consumed = np.zeros(nsim, dtype=np.int64)
-    capacity = sims[0].record_capacity
+            judge.fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn "
+                       "(turn further: control.cal_sweep, control.cal_duty)", 0.0, 0.0)
+        start_phase(sim, RUN)
+    return cal
+
+
+# --- the lap
+def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None] | None) -> None:
+    """Step the running laps chunk by chunk, judging each chunk, until every lap has ended."""
     # no lap can be faster than its wheels' no-load speed: step no further than that could finish it
-    top_step_m = [lap.params.wheel_speed_max * lap.params.wheel_radius_m * lap.physics.timestep for lap in laps]
+    tick_m = [lap.params.wheel_speed_max * lap.params.wheel_radius_m * lap.physics.timestep * k
+              for lap, k in zip(fleet.laps, fleet.steps)]
     while True:
-        active = [i for i, j in enumerate(judges) if not j.done]
+        active = [i for i, j in enumerate(fleet.judges) if not j.done]
         if not active:
-            break
-        # each lap steps as far as could still not finish it (at least MIN_CHUNK_TICKS, at most CHUNK_TICKS);
+            return
         # laps with the same power-of-two chunk step together, so a lap near its end does not hold back the rest
         groups: dict[int, list[int]] = {}
         for i in active:
-            ticks = (twin.track.length_m - (judges[i].u_last or 0.0)) / (top_step_m[i] * steps[i]) + 1
-            ticks = MIN_CHUNK_TICKS * 2 ** int(np.floor(np.log2(max(1.0, ticks / MIN_CHUNK_TICKS))))
-            groups.setdefault(min(ticks, CHUNK_TICKS) * steps[i], []).append(i)
+            ticks = chunk_ticks(length_m - (fleet.judges[i].u_last or 0.0), tick_m[i])
+            groups.setdefault(ticks * fleet.steps[i], []).append(i)
         for nstep, ids in sorted(groups.items()):
-            _step(batch, np.array(ids), nstep, judges)
-        for i in active:
-            written = sims[i].records_written
-            n = written - consumed[i]
-            if n > capacity:
-                raise TwinError(f"lap {i}: trace ring overflowed ({n} records for {capacity} slots)")
-            judges[i].feed(core.records_view(userdata[i])[np.arange(consumed[i], written) % capacity])
-            consumed[i] = written
+            fleet.step(np.array(ids), nstep)
+        fleet.drain(active)
         if on_chunk is not None:
-            on_chunk(float(batch.time[active].max()), int(sum(not j.done for j in judges)))
-    return [j.result(lap.params.count, *cal[i], lap.values) for i, (j, lap) in enumerate(zip(judges, laps))]
+            on_chunk(float(fleet.batch.time[active].max()), int(sum(not j.done for j in fleet.judges)))
 
 
-def _calibration_key(lap: "Variant", seed: int) -> tuple:
-    """Everything the calibration turn depends on: physics fields, sensor model, geometry and turn settings,
-    the seed. Not the gains: the turn does not use them."""
-    turn = dataclasses.replace(lap.params, v_max=0.0, k_b=0.0, k_p=0.0, k_i=0.0, k_d=0.0, accel_max=0.0,
-                               integral_limit=0.0)
-    return lap.field_key, dataclasses.astuple(lap.sensor), turn, int(seed)
-
-
-def _calibrations(twin: DigitalTwin) -> dict:
-    """Calibrations made on the twin's current build: {key: (min, max, RNG state after the turn)}."""
-    store = twin.__dict__.setdefault("_calibrations", {"build": None, "done": {}})
-    if store["build"] != twin.rebuilds:  # a rebuilt robot or track calibrates anew
-        store["build"], store["done"] = twin.rebuilds, {}
-    return store["done"]
-
-
-def _batch(twin: DigitalTwin, model: mujoco.MjModel, nsim: int, nthread: int) -> mujoco.batch.Batch:
-    """A batch for this model and size, made once per twin: making one costs ~10 ms, a lap ~200 ms."""
-    cache = twin.__dict__.setdefault("_batches", {})
-    key = (twin.rebuilds, nsim, nthread)  # the build count, not id(model): ids are reused after a rebuild
-    if key not in cache:
-        cache.clear()  # a rebuilt model makes the old batches useless
-        cache[key] = (model, mujoco.batch.Batch(model, nsim=nsim, nthread=nthread))
-    return cache[key][1]
-
-
-def _step(batch: mujoco.batch.Batch, ids: np.ndarray, nstep: int, judges: list[LapJudge]) -> set[int]:
-    """Step some simulations; those where MuJoCo raises or the state turns non-finite end as ``diverged``."""
-    failed: set[int] = set()
-    try:
-        batch.step(ids=ids, nstep=nstep)
-    except mujoco.batch.SimulationError as e:
-        for i in e.ids:
-            failed.add(int(i))
-            judges[int(i)].fail(DIVERGED, f"MuJoCo: {batch.error(int(i))}", float(batch.time[int(i)]), 0.0)
-    bad = ids[~np.isfinite(batch.qpos[ids]).all(axis=1)]
-    for i in bad:
-        failed.add(int(i))
-        judges[int(i)].fail(DIVERGED, "the physics produced a non-finite state", float(batch.time[int(i)]), 0.0)
-    return failed
+def chunk_ticks(remaining_m: float, tick_m: float) -> int:
+    """Control ticks to step a lap with ``remaining_m`` to go at most ``tick_m`` per tick: as many as could not
+    finish it, rounded down to MIN_CHUNK_TICKS times a power of two, within [MIN_CHUNK_TICKS, CHUNK_TICKS]."""
+    bound = remaining_m / tick_m + 1 if tick_m > 0 else float("inf")
+    if not bound < CHUNK_TICKS:  # also inf and NaN (a wheel so small its step underflows): the longest chunk
+        return CHUNK_TICKS
+    return min(MIN_CHUNK_TICKS * 2 ** int(np.floor(np.log2(max(1.0, bound / MIN_CHUNK_TICKS)))), CHUNK_TICKS)

@@ -11,10 +11,14 @@ import dataclasses
 import math
 from typing import Sequence
 
+from line_sensor.geometry import MAX_SENSORS
 from line_sensor.processing import calibrate_update, line_angle, read_calibrated, read_line
 from twin.errors import TwinError
 
 IDLE, CALIBRATE, RUN = 0, 1, 2
+QUARTER_TICKS_MAX = 2**29  # LF_QUARTER_TICKS_MAX: tick counts saturate as the firmware's do
+TICKS_MAX = 2**32 - 1  # LF_TICKS_MAX (uint32)
+INT32_MAX = 2**31 - 1  # cal_sweeps is an int32_t in C
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,6 +64,11 @@ class ControlParams:
         for name in ("dt_s", "wheel_radius_m", "half_track_m", "wheel_speed_max", "sensor_distance_m", "pitch_m", "cal_duty"):
             if getattr(self, name) <= 0:
                 raise TwinError(f"control.{name}: must be > 0, got {getattr(self, name):g}")
+        # the C arrays hold MAX_SENSORS readings, and ctypes would wrap an int32 silently
+        if not (isinstance(self.count, int) and 1 <= self.count <= MAX_SENSORS):
+            raise TwinError(f"control.count: must be a whole number in [1, {MAX_SENSORS}], got {self.count!r}")
+        if not (isinstance(self.cal_sweeps, int) and self.cal_sweeps <= INT32_MAX):
+            raise TwinError(f"control.cal_sweeps: must be a whole number <= {INT32_MAX}, got {self.cal_sweeps!r}")
 
 
 @dataclasses.dataclass
@@ -127,13 +136,16 @@ def wheel_duties(p: ControlParams, v: float, omega: float) -> tuple[float, float
 
 def _quarter_ticks(p: ControlParams) -> int:
     omega = p.cal_duty * p.wheel_speed_max * p.wheel_radius_m / p.half_track_m
-    ticks = p.cal_sweep_rad / (omega * p.dt_s)
+    ticks = p.cal_sweep_rad / (omega * p.dt_s) if omega * p.dt_s > 0 else math.inf  # C divides to inf
+    if not ticks < QUARTER_TICKS_MAX:
+        return QUARTER_TICKS_MAX
     return 1 if ticks < 1.0 else int(ticks + 0.5)
 
 
 def calibration_ticks(p: ControlParams) -> int:
-    """Length of the calibration turn in ticks: per sweep a quarter right, a half left, a quarter right."""
-    return 4 * _quarter_ticks(p) * p.cal_sweeps
+    """Length of the calibration turn in ticks: per sweep a quarter right, a half left, a quarter right;
+    saturates at ``TICKS_MAX`` as the firmware's uint32 does."""
+    return min(4 * _quarter_ticks(p) * max(p.cal_sweeps, 0), TICKS_MAX)
 
 
 def calibration_direction(p: ControlParams, tick: int) -> int:
@@ -160,7 +172,7 @@ def firmware_step(s: FirmwareState, p: ControlParams, raw: Sequence[int]) -> Non
         s.duty_left, s.duty_right = wheel_duties(p, s.v, s.omega)
     else:
         s.duty_left = s.duty_right = 0.0
-    s.tick += 1
+    s.tick = min(s.tick + 1, TICKS_MAX)
 
 
 # Nominal firmware settings: the control model's defaults in the model space (``control.*``).

@@ -13,6 +13,7 @@ import hashlib
 import json
 import logging
 import os
+from typing import Mapping
 
 import mujoco
 import numpy as np
@@ -32,6 +33,7 @@ from twin import core
 from twin.controller import ControlParams
 from twin.environment import load_track
 from twin.errors import TwinError
+from twin.lap_cache import BatchCache, CalibrationCache
 from twin.model_space import ChangeCost, ModelSpace
 from twin.models import default_space
 
@@ -75,6 +77,8 @@ class DigitalTwin:
         self.info: RobotInfo | None = None
         self.rebuilds = 0  # how many times the world was compiled: tests and logs read it
         self.sensor_distance = 0.0  # S measured on the built robot: axle centre to sensor array [m]
+        self.batches = BatchCache()  # run_laps' mujoco.batch, per build
+        self.calibrations = CalibrationCache()  # calibration turns made, per build
 
     # --- parameters
     def _check_applies(self, address: str) -> None:
@@ -94,14 +98,30 @@ class DigitalTwin:
             self._check_applies(address)
         self.space.update(changes)
 
+    def checked_values(self, changes: Mapping[str, float]) -> dict[str, float]:
+        """The twin's values with ``changes`` applied, each checked as :meth:`set` checks it; the twin is not changed."""
+        for address in changes:
+            self._check_applies(address)
+        return {**self.space.values, **{a: self.space.parameter(a).check(a, v) for a, v in changes.items()}}
+
+    def _all(self, values: Mapping[str, float] | None) -> Mapping[str, float]:
+        """``values`` (every address), or the twin's own."""
+        return self.space.values if values is None else values
+
+    def _values(self, model: str, values: Mapping[str, float] | None) -> dict[str, float]:
+        """{name: value} of one partial model's parameters, from ``values`` (every address) or the twin's own."""
+        v = self._all(values)
+        return {p.name: v[f"{model}.{p.name}"] for p in self.space.models[model].parameters}
+
     def design(self) -> RobotDesign:
         try:
             return RobotDesign(**self.space.model_values("cad"))
         except ValueError as e:
             raise TwinError(str(e)) from None
 
-    def motor(self) -> MotorConstants:
-        v = self.space.model_values("motor")
+    def motor(self, values: Mapping[str, float] | None = None) -> MotorConstants:
+        """The motor constants of the twin's values, or of ``values`` (every address, e.g. :meth:`checked_values`)."""
+        v = self._values("motor", values)
         v.pop("supply_voltage")
         try:
             return MotorConstants(**v)
@@ -111,8 +131,9 @@ class DigitalTwin:
     def sensor_array(self) -> SensorArray:
         return SensorArray(count=int(self.space.get("sensor.count")), pitch=self.space.get("sensor.pitch"))
 
-    def sensor_model(self) -> SensorModel:
-        v = self.space.model_values("sensor")
+    def sensor_model(self, values: Mapping[str, float] | None = None) -> SensorModel:
+        """The sensor response of the twin's values, or of ``values`` (every address)."""
+        v = self._values("sensor", values)
         try:
             return SensorModel(
                 aperture_m=v["aperture"], half_angle_rad=v["half_angle"], falloff_height_m=v["falloff_height"],
@@ -121,19 +142,20 @@ class DigitalTwin:
         except SensorError as e:
             raise TwinError(str(e)) from None
 
-    def control_params(self) -> ControlParams:
-        """The firmware's parameters: gains from ``control.*``, geometry measured on the built robot."""
-        model = self.model()
-        c = self.space.model_values("control")
-        steps = c["dt"] / model.opt.timestep
+    def control_params(self, values: Mapping[str, float] | None = None) -> ControlParams:
+        """The firmware's parameters: gains from ``control.*`` of the twin's values or of ``values`` (every
+        address), geometry measured on the built robot."""
+        self.model()  # the robot's geometry (info, sensor_distance) comes from the build
+        v = self._all(values)
+        c = self._values("control", values)
+        timestep = v["motion.timestep"]
+        steps = c["dt"] / timestep
         if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
-            raise TwinError(
-                f"control.dt: {c['dt']:g} s is not a whole number of physics steps ({model.opt.timestep:g} s)"
-            )
+            raise TwinError(f"control.dt: {c['dt']:g} s is not a whole number of physics steps ({timestep:g} s)")
         # the firmware's belief about its motors is its own constant (control.full_speed), not the simulated motor:
         # a robot whose real motors differ from the datasheet drives differently, as it would
         return ControlParams(
-            count=int(self.space.get("sensor.count")), pitch_m=self.space.get("sensor.pitch"),
+            count=int(v["sensor.count"]), pitch_m=v["sensor.pitch"],
             sensor_distance_m=self.sensor_distance, v_max=c["v_max"], k_b=c["kb"], k_p=c["kp"], k_i=c["ki"],
             k_d=c["kd"], dt_s=c["dt"], wheel_radius_m=self.info.wheel_radius, half_track_m=self.info.half_track,
             wheel_speed_max=c["full_speed"], accel_max=c["accel_max"],
@@ -141,11 +163,12 @@ class DigitalTwin:
             cal_sweeps=int(c["cal_sweeps"]),
         )
 
-    def physics(self) -> PhysicsOptions:
-        v = self.space.model_values("motion")
+    def physics(self, values: Mapping[str, float] | None = None) -> PhysicsOptions:
+        """The physics options of the twin's values, or of ``values`` (every address)."""
+        v = self._values("motion", values)
         return PhysicsOptions(
             timestep=v["timestep"], tyre_mu=v["mu"], floor_mu=v["floor_mu"],
-            supply_voltage=self.space.get("motor.supply_voltage"), impratio=v["impratio"],
+            supply_voltage=self._all(values)["motor.supply_voltage"], impratio=v["impratio"],
         )
 
     # --- building

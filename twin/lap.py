@@ -10,7 +10,10 @@ nearest the centre of rotation (computed by the C loop at every tick, ``lf_locat
 * ``timeout``: the lap is not done after ``timeout_s`` of simulated time;
 * ``diverged``: the physics produced a non-finite state or MuJoCo raised an error;
 * ``calibration``: after the calibration turn some sensor's range max − min is below
-  ``min_calibration_range_us`` (it never saw both the line and the ground).
+  ``min_calibration_range_us`` (it never saw both the line and the ground), or the turn would take longer
+  than ``calibration_timeout_s`` of simulated time (then it is not simulated at all);
+* ``refused``: the C loop found that a simulation's userdata did not fit the model it was stepped with
+  (a program error, reported as a result rather than a crash).
 
 A failed lap is a result, not an exception.
 """
@@ -26,8 +29,8 @@ from mjcf.track import Track
 from twin import core
 from twin.errors import TwinError
 
-COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED, CALIBRATION = (
-    "completed", "off_track", "line_lost", "timeout", "diverged", "calibration")
+COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED, CALIBRATION, REFUSED = (
+    "completed", "off_track", "line_lost", "timeout", "diverged", "calibration", "refused")
 COL = {name: i for i, name in enumerate(core.RECORD_FIELDS)}
 
 
@@ -40,6 +43,9 @@ class LapLimits:
     max_line_lost_s: float = 0.5
     timeout_s: float = 60.0
     min_calibration_range_us: float = 300.0
+    # the default turn takes 1.9 s; 20 s allows a turn ten times slower, while a near-stalled turn (hours of
+    # simulated time, e.g. control.cal_duty 0.01 with control.full_speed 1) fails at once instead of hanging
+    calibration_timeout_s: float = 20.0
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

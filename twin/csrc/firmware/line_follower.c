@@ -118,11 +118,20 @@ void lf_wheel_duties(const lf_params *p, lf_real v, lf_real omega, lf_real *left
 static uint32_t quarter_ticks(const lf_params *p) {
   lf_real omega = p->cal_duty * p->wheel_speed_max * p->wheel_radius_m / p->half_track_m;
   lf_real ticks = p->cal_sweep_rad / (omega * p->dt_s);
+  /* saturate before converting: a float beyond uint32 (or NaN) has no defined conversion */
+  if (!(ticks < (lf_real)LF_QUARTER_TICKS_MAX)) return LF_QUARTER_TICKS_MAX;
   return ticks < 1.0 ? 1u : (uint32_t)(ticks + 0.5);
 }
 
-/* Length of the calibration turn: each sweep is a quarter right, a half left, a quarter right. */
-uint32_t lf_calibration_ticks(const lf_params *p) { return 4u * quarter_ticks(p) * (uint32_t)p->cal_sweeps; }
+/* Length of the calibration turn: each sweep is a quarter right, a half left, a quarter right. Saturates at
+ * LF_TICKS_MAX rather than wrapping to a short turn. */
+uint32_t lf_calibration_ticks(const lf_params *p) {
+  uint32_t cycle = 4u * quarter_ticks(p); /* at most 2^31 */
+  uint32_t sweeps;
+  if (p->cal_sweeps <= 0) return 0;
+  sweeps = (uint32_t)p->cal_sweeps;
+  return sweeps > LF_TICKS_MAX / cycle ? LF_TICKS_MAX : cycle * sweeps;
+}
 
 /* Turn direction at a calibration tick: +1 left (CCW), -1 right, 0 when done (Pololu's example pattern). */
 int32_t lf_calibration_direction(const lf_params *p, uint32_t tick) {
@@ -148,5 +157,5 @@ void lf_step(lf_state *s, const lf_params *p, const uint16_t *raw) {
     s->duty_left = 0;
     s->duty_right = 0;
   }
-  s->tick++;
+  if (s->tick < LF_TICKS_MAX) s->tick++;
 }

@@ -19,6 +19,10 @@ extern "C" {
 #define LF_MAX_SENSORS 16
 #define LF_NOISE_THRESHOLD 50 /* readLine: calibrated values above this are averaged */
 #define LF_LINE_THRESHOLD 200 /* readLine: the line is seen if any value exceeds this */
+/* Tick counts saturate instead of wrapping: a quarter sweep at most 2^29 ticks (exact in float and double, and
+ * four of them fit a uint32), a calibration turn and the tick counter at most UINT32_MAX. */
+#define LF_QUARTER_TICKS_MAX ((uint32_t)536870912UL)
+#define LF_TICKS_MAX UINT32_MAX
 
 typedef double lf_real; /* avr-gcc's double is 32-bit: the same source is single precision on the MCU */
 
@@ -54,7 +58,7 @@ typedef struct {
   int32_t last_position;            /* readLine memory: side the line was last seen on */
   int32_t line_seen;                /* last readLine saw the line (1) or reported an end (0) */
   int32_t mode;                     /* enum lf_mode */
-  uint32_t tick;                    /* loop iterations in the current mode */
+  uint32_t tick;                    /* loop iterations in the current mode, saturating at LF_TICKS_MAX */
   lf_real e;                        /* Eq. 9: line angle [rad], > 0 when the line is to the left */
   lf_real e_prev;                   /* e of the previous RUN tick [rad] */
   lf_real integral;                 /* integral of e dt [rad*s] */

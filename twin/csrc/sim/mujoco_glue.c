@@ -20,10 +20,53 @@ static lf_ray_fn ray_fn = 0;
 /* Hand over mj_ray; until then the callback leaves every simulation alone. */
 void lf_set_ray(void *fn) { ray_fn = (lf_ray_fn)fn; }
 
+#define SIM_WORDS ((int64_t)((sizeof(lf_sim) + sizeof(mjtNum) - 1) / sizeof(mjtNum)))
+#define RECORD_WORDS ((int64_t)(sizeof(lf_record) / sizeof(mjtNum)))
+
 static lf_sim *sim_of(const mjModel *m, mjData *d) {
-  if (m->nuserdata < (mjtSize)(sizeof(lf_sim) / sizeof(mjtNum))) return 0;
+  if (m->nuserdata < SIM_WORDS) return 0;
   if (d->userdata[0] != LF_MAGIC) return 0;
   return (lf_sim *)d->userdata;
+}
+
+/* The model's sizes that a head is written for, in the order of twin.core.SIGNATURE. */
+static void model_signature(const mjModel *m, int64_t *out) {
+  out[0] = m->nbody;
+  out[1] = m->nsite;
+  out[2] = m->ntex;
+  out[3] = m->ntexdata;
+  out[4] = m->nu;
+  out[5] = m->na;
+  out[6] = m->nv;
+  out[7] = m->nnumericdata;
+}
+
+static int in_range(int64_t id, int64_t n) { return id >= 0 && id < n; }
+
+/* Whether a head fits the model it is stepped with: LF_OK, or the first misfit. Every index the callback uses
+ * comes from the head, so each is checked here (a few dozen comparisons, against ~10 us of physics per step). */
+static int32_t check(const mjModel *m, const lf_sim *s) {
+  int64_t signature[LF_SIGNATURE];
+  int32_t i;
+  if (s->layout_version != LF_LAYOUT_VERSION) return LF_ERR_LAYOUT;
+  model_signature(m, signature);
+  for (i = 0; i < LF_SIGNATURE; i++)
+    if (signature[i] != s->model_signature[i]) return LF_ERR_MODEL;
+  if (s->record_capacity < 1 || SIM_WORDS + (int64_t)s->record_capacity * RECORD_WORDS > m->nuserdata)
+    return LF_ERR_CAPACITY;
+  if (s->nsensor < 1 || s->nsensor > LF_MAX_SENSORS || s->firmware.count != s->nsensor) return LF_ERR_SENSORS;
+  for (i = 0; i < s->nsensor; i++)
+    if (!in_range(s->sensor_site[i], m->nsite)) return LF_ERR_ID;
+  if (!in_range(s->axle_site, m->nsite) || !in_range(s->sensor_body, m->nbody) || !in_range(s->root_body, m->nbody) ||
+      !in_range(s->texture_id, m->ntex) || !in_range(s->actuator_left, m->nu) || !in_range(s->actuator_right, m->nu) ||
+      !in_range(s->dof_left, m->nv) || !in_range(s->dof_right, m->nv))
+    return LF_ERR_ID;
+  /* x, y, arc length per vertex, then the track length; two vertices at least, or the segment walk divides by 0 */
+  if (s->centre_count < 2 || s->centre_adr < 0 ||
+      (int64_t)s->centre_adr + 3 * (int64_t)s->centre_count + 1 > m->nnumericdata)
+    return LF_ERR_CENTRE;
+  if (s->records_written < 0) return LF_ERR_STATE; /* its slot is records_written % record_capacity */
+  return LF_OK;
 }
 
 /* Electrical power drawn by a DC motor, u i (the driver returns nothing to the battery). */
@@ -152,7 +195,9 @@ static void write_record(const mjModel *m, const mjData *d, lf_sim *s, double mo
 void lf_control_callback(const mjModel *m, mjData *d) {
   lf_sim *s = sim_of(m, d);
   double next_tick, height0 = 0.0, mode;
-  if (!s || !ray_fn) return;
+  if (!s || s->error != LF_OK || !ray_fn) return;
+  s->error = check(m, s);
+  if (s->error != LF_OK) return; /* refused: Python ends the lap; nothing here reads the head's indices again */
   if (d->time > s->last_time) {
     s->energy_j += (d->time - s->last_time) *
                    (motor_power(m, d, s->actuator_left) + motor_power(m, d, s->actuator_right));
@@ -168,16 +213,4 @@ void lf_control_callback(const mjModel *m, mjData *d) {
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
   s->ticks++;
   write_record(m, d, s, mode, height0);
-}
-
-/* Layout check for Python's ctypes mirrors, and the MuJoCo header this library was compiled against. */
-void lf_sizes(int64_t *out) {
-  out[0] = (int64_t)sizeof(lf_sim);
-  out[1] = (int64_t)sizeof(lf_record);
-  out[2] = (int64_t)sizeof(lf_params);
-  out[3] = (int64_t)sizeof(lf_state);
-  out[4] = (int64_t)sizeof(lf_sensor_model);
-  out[5] = (int64_t)mjVERSION_HEADER;
-  out[6] = (int64_t)sizeof(mjtNum);
-  out[7] = LF_MAX_SENSORS;
 }

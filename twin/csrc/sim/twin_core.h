@@ -4,7 +4,11 @@
  * the libmujoco the mujoco module has loaded: the library needs no link-time dependency on a versioned .so.
  *
  * userdata = [lf_sim | lf_record x record_capacity], all 8-byte aligned. Python (twin.core) mirrors these
- * structs with ctypes and checks their sizes against lf_sizes() when the library loads.
+ * structs with ctypes and checks their sizes (lf_sizes) and every field's offset (lf_layout) when the library loads.
+ *
+ * Python validates and C trusts the values, but not the userdata's fit to the model it is stepped with: before
+ * it reads or writes anything, the callback checks the head against the mjModel it is given (mujoco_glue.c) and,
+ * if they do not fit, records why in `error` and leaves that simulation alone from then on.
  */
 #ifndef LF_TWIN_CORE_H
 #define LF_TWIN_CORE_H
@@ -15,8 +19,21 @@
 #include "sensor_physics.h"
 
 #define LF_MAGIC 1279676025.0  /* "LFTy": marks userdata the callback owns; other models are left alone */
-#define LF_LAYOUT_VERSION 4
+#define LF_LAYOUT_VERSION 5
 #define LF_RECORD_FIXED 20
+#define LF_SIGNATURE 8 /* model sizes in lf_sim.model_signature: see model_signature() in mujoco_glue.c */
+
+/* Why the callback refused a simulation (lf_sim.error). */
+enum lf_error {
+  LF_OK = 0,
+  LF_ERR_LAYOUT = 1,   /* layout_version is not this library's */
+  LF_ERR_MODEL = 2,    /* the mjModel's sizes are not those the head was written for */
+  LF_ERR_CAPACITY = 3, /* record_capacity < 1, or the trace ring does not fit in nuserdata */
+  LF_ERR_SENSORS = 4,  /* nsensor or firmware.count outside 1..LF_MAX_SENSORS, or not equal */
+  LF_ERR_ID = 5,       /* a site, body, texture, actuator or dof id outside the model */
+  LF_ERR_CENTRE = 6,   /* the centre line does not lie inside numeric_data */
+  LF_ERR_STATE = 7     /* records_written < 0 */
+};
 
 /* One line of the trace, written at every control tick. */
 typedef struct {
@@ -43,6 +60,8 @@ typedef struct {
 typedef struct {
   double magic;
   int32_t layout_version;
+  int32_t error;                 /* enum lf_error: set by the callback when it refuses the simulation */
+  int64_t model_signature[LF_SIGNATURE]; /* the model's sizes when Python wrote the head */
   int32_t nsensor;
   int32_t sensor_site[LF_MAX_SENSORS]; /* site of each sensor; its z axis is the ray */
   int32_t sensor_body;           /* the sensor mount: its own geoms never block a ray */
@@ -72,6 +91,18 @@ typedef struct {
   lf_state fw;
   uint16_t raw[LF_MAX_SENSORS];
 } lf_sim;
+
+/* One field of a mirrored struct, for Python's load-time check: "struct.field", offsetof and sizeof [bytes]. */
+typedef struct {
+  const char *name;
+  int64_t offset, size;
+} lf_field;
+
+/* The fields of lf_sim, lf_record, lf_params, lf_state, lf_sensor_model and lf_texture; returns their number. */
+int32_t lf_layout(const lf_field **fields);
+/* Struct sizes, the MuJoCo header version, sizeof(mjtNum), LF_MAX_SENSORS, LF_LAYOUT_VERSION, LF_SIGNATURE into
+ * out[0..n-1]; returns how many values there are. */
+int32_t lf_sizes(int64_t *out, int32_t n);
 
 /* Nearest point of a closed polyline (x, y, arc length per vertex) to (x, y), searched from segment *seg
  * (or over all segments if *seg < 0) by walking to neighbours while they are nearer. */
