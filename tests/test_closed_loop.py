@@ -250,3 +250,10 @@ def test_kept_calibration_is_bit_identical_to_a_fresh_one(twin):
     for a, b in zip(kept, fresh):
         assert np.array_equal(a.trace.records, b.trace.records)
         assert a.calibration_max_us == b.calibration_max_us
+
+
+def test_per_lap_seeds_equal_laps_run_with_one_seed_each(twin):
+    together = run_laps(twin, [{}, {"control.kp": 18.0}, {}], seed=[3, 0, 5], keep_traces=False)
+    alone = [run_laps(twin, [v], seed=s, keep_traces=False)[0] for v, s in (({}, 3), ({"control.kp": 18.0}, 0), ({}, 5))]
+    assert [r.summary() for r in together] == [r.summary() for r in alone]
+    assert together[0].lap_time_s != together[2].lap_time_s  # the seeds did differ

@@ -43,7 +43,7 @@ SEED_MAX = 2**64 - 1  # the C generator's state is a uint64
 def run_laps(
     twin: DigitalTwin,
     variants: Sequence[Mapping[str, float]] = ({},),
-    seed: int = 0,
+    seed: int | Sequence[int] = 0,
     limits: LapLimits = LapLimits(),
     nthread: int = 0,
     keep_traces: bool = True,
@@ -56,7 +56,7 @@ def run_laps(
       twin: the robot on its track; its current values are every lap's base. It is not changed.
       variants: per lap, addresses to change from the base (``control.*``, ``sensor.*`` other than count and
         pitch, ``motion.*``, ``motor.*``); the robot and track (``cad.*``, ``environment.*``) are shared.
-      seed: noise seed in [0, 2**64 − 1]; every lap gets the same noise stream (common random numbers).
+      seed: noise seed in [0, 2**64 − 1]: one for every lap (common random numbers), or one per lap.
       limits: failure thresholds.
       nthread: threads of the batch, 0 for all cores. Results do not depend on it.
       keep_traces: keep each lap's per-tick trace (memory: ~400 B per tick per lap).
@@ -66,14 +66,18 @@ def run_laps(
     """
     if not variants:
         return []
-    check_seed(seed)
+    seeds = [seed] * len(variants) if isinstance(seed, (int, np.integer)) else list(seed)
+    if len(seeds) != len(variants):
+        raise TwinError(f"seeds: {len(seeds)} given for {len(variants)} laps")
+    for s in seeds:
+        check_seed(s)
     model = twin.model()
     laps = [Variant.of(twin, v) for v in variants]
     core.install_callback()
-    fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seed,
+    fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds,
                   [LapJudge(twin.track, limits, keep_traces) for _ in laps])
     _refuse_long_turns(fleet, limits)
-    keys = [lap.calibration_key(seed) for lap in laps]
+    keys = [lap.calibration_key(s) for lap, s in zip(laps, seeds)]
     turns = twin.calibrations.of(twin.rebuilds) if reuse_calibration else {}
     failed = _calibrate(fleet, keys, turns)
     cal = _start_laps(fleet, keys, turns, failed, limits)
@@ -109,8 +113,8 @@ class Fleet:
     """The laps' simulations in one batch: their userdata heads, their judges, stepping and draining them."""
 
     def __init__(self, twin: DigitalTwin, model: mujoco.MjModel, batch: mujoco.batch.Batch, laps: list[Variant],
-                 seed: int, judges: list[LapJudge]):
-        self.twin, self.model, self.batch, self.laps, self.seed, self.judges = twin, model, batch, laps, seed, judges
+                 seeds: list[int], judges: list[LapJudge]):
+        self.twin, self.model, self.batch, self.laps, self.seeds, self.judges = twin, model, batch, laps, seeds, judges
         self.steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]  # physics steps per tick
         self.sims: list[core.Sim] = []
         self.consumed = np.zeros(len(laps), dtype=np.int64)  # records each judge has read
@@ -119,7 +123,7 @@ class Fleet:
         """Every simulation on the start line with a fresh head, uncalibrated and in the calibration phase."""
         self.batch.reset(keyframe=np.full(len(self.laps), self.model.key(START_KEY).id), stage=mujoco.mjtStage.mjSTAGE_NONE)
         rows = self.batch.userdata  # (nsim, nuserdata), live view of the state rows
-        self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seed)
+        self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seeds[i])
                      for i, lap in enumerate(self.laps)]
 
     def step(self, ids: np.ndarray, nstep: int) -> None:

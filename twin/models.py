@@ -11,7 +11,7 @@ import dataclasses
 from mjcf.design import DESIGN_UNITS, RobotDesign
 from mjcf.track import LINE_WIDTH_M
 from mjcf.world import TYRE_SOLREF, PhysicsOptions
-from line_sensor.geometry import SensorArray
+from line_sensor.geometry import MAX_SENSORS, SensorArray
 from line_sensor.reflectance import SensorModel
 from motors import POLOLU_MP_6V_30_1
 from twin.controller import DEFAULTS as CONTROL_DEFAULTS
@@ -121,7 +121,7 @@ def sensor_model() -> PartialModel:
         inputs=(Port("pose", "m, rad"), Port("floor_texture", "-")),
         outputs=(Port("sensor_readings", "µs", "raw QTR-RC discharge time per sensor"),),
         parameters=(
-            Parameter("count", "-", array.count, 2, 16, R, "reflectance sensors in the array (QTR-8: 8)", True, integer=True),
+            Parameter("count", "-", array.count, 2, MAX_SENSORS, R, "reflectance sensors in the array (QTR-8: 8)", True, integer=True),
             Parameter("pitch", "m", array.pitch, 0.002, 0.03, R, "sensor spacing (QTR-8: 9.525 mm)", True),
             Parameter("aperture", "m", resp.aperture_m, 1e-4, 0.01, C, "footprint radius at zero height", True),
             Parameter("half_angle", "rad", resp.half_angle_rad, 0.01, 1.2, C, "footprint growth with height", True),
