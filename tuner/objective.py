@@ -1,4 +1,4 @@
-"""The objective of the learning model: lap time, with a penalty for a lap that fails.
+"""The objective of the learning model: lap time, with a penalty for a lap that fails, over an envelope.
 
 F(x) = lap time [s] for a completed lap. A failed lap (off track, line lost, timeout, …) costs
 
@@ -8,8 +8,10 @@ where t_fail is when it failed, L the track length and d the distance covered. S
 than finishing (by at least ``PENALTY_S``), and one that gets further costs less: near the failure boundary
 the objective still points the way back to laps that finish.
 
-Every evaluation is a batch of laps (``twin.closed_loop.run_laps``) with the same noise seed (common random
-numbers): differences between laps come from the parameters, not the noise.
+A gain vector is judged over an :class:`tuner.envelope.Envelope` (scenarios × noise seeds; by default the twin
+as it is, with one seed) and its lap costs are aggregated by a :class:`tuner.envelope.Risk`. Every evaluation of
+m points is one batch of m × scenarios × seeds laps (``twin.closed_loop.run_laps``); the seeds are the same for
+every point (common random numbers), so differences between points come from the parameters, not the noise.
 """
 
 from __future__ import annotations
@@ -22,7 +24,9 @@ import numpy as np
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
 from twin.lap import LapLimits, LapResult
+from tuner.envelope import Envelope, Risk, label
 from tuner.space import SearchSpace
+from twin.errors import TwinError
 
 PENALTY_S = 5.0  # [s] added to any failed lap
 SLOW_SPEED = 0.2  # [m/s] the distance left is charged as if driven at this speed
@@ -37,11 +41,16 @@ def lap_cost(r: LapResult) -> float:
 
 @dataclasses.dataclass(frozen=True)
 class Evaluation:
-    """One lap of the search: parameters, cost, and the lap itself (without its trace)."""
+    """One point of the search: parameters, its cost, and its laps (scenario-major, then seed), without traces."""
 
     x: np.ndarray
     cost: float
-    lap: LapResult
+    laps: tuple[LapResult, ...]
+
+    @property
+    def lap(self) -> LapResult:
+        """The first scenario's lap with the first seed (the only lap of a plain tuning)."""
+        return self.laps[0]
 
 
 class LapObjective:
@@ -50,28 +59,42 @@ class LapObjective:
     Args:
       twin: the robot on its track; its values are the base of every lap.
       space: the searched parameters.
-      seed: sensor-noise seed shared by every lap (common random numbers).
+      seed: sensor-noise seed of every lap when ``envelope`` is None (common random numbers).
       limits: lap failure thresholds.
       nthread: batch threads, 0 for all cores.
+      envelope: scenarios × seeds each point is judged on (default: the twin as it is, with ``seed``).
+      risk: how a point's lap costs add up (default: their mean).
     """
 
-    def __init__(self, twin: DigitalTwin, space: SearchSpace, seed: int = 0, limits: LapLimits = LapLimits(), nthread: int = 0):
-        self.twin, self.space, self.seed, self.limits, self.nthread = twin, space, seed, limits, nthread
+    def __init__(self, twin: DigitalTwin, space: SearchSpace, seed: int = 0, limits: LapLimits = LapLimits(),
+                 nthread: int = 0, envelope: Envelope | None = None, risk: Risk = Risk("mean")):
+        self.twin, self.space, self.limits, self.nthread = twin, space, limits, nthread
+        self.envelope = envelope if envelope is not None else Envelope.of({}, [seed])
+        self.risk = risk
+        for address, _ in self.envelope.axes:
+            if address in space.addresses:
+                raise TwinError(f"{address}: is searched, so it cannot also be a scenario")
         self.laps = 0  # laps simulated so far
-        self.first: Evaluation | None = None  # the first lap: both procedures start at the starting point
+        self.first: Evaluation | None = None  # the first point: both procedures start at the starting point
         self.best: Evaluation | None = None
         self.on_lap: Callable[[Evaluation], None] | None = None
+        self._seen: dict[bytes, Evaluation] = {}
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
-        """F at points z (m, n) of the unit box: one batch of m laps. Returns (m,) costs in [s]."""
+        """F at points z (m, n) of the unit box: one batch of m × scenarios × seeds laps. Returns (m,) costs in [s]."""
         z = np.atleast_2d(z)
         xs = [self.space.from_unit(zi) for zi in z]
-        results = run_laps(self.twin, [self.space.assignments(x) for x in xs], seed=self.seed, limits=self.limits,
-                           nthread=self.nthread, keep_traces=False)
+        scenarios, seeds = self.envelope.scenarios, self.envelope.seeds
+        variants = [{**self.space.assignments(x), **sc} for x in xs for sc in scenarios for _ in seeds]
+        results = run_laps(self.twin, variants, seed=[s for _ in xs for _ in scenarios for s in seeds],
+                           limits=self.limits, nthread=self.nthread, keep_traces=False)
         self.laps += len(results)
-        costs = np.array([lap_cost(r) for r in results])
-        for x, c, r in zip(xs, costs, results):
-            e = Evaluation(x, float(c), r)
+        per_point = len(scenarios) * len(seeds)
+        lap_costs = np.array([lap_cost(r) for r in results]).reshape(len(xs), per_point)
+        costs = self.risk(lap_costs)
+        for i, (zi, x, c) in enumerate(zip(z, xs, costs)):
+            e = Evaluation(x, float(c), tuple(results[i * per_point:(i + 1) * per_point]))
+            self._seen[np.asarray(zi, dtype=float).tobytes()] = e
             if self.first is None:
                 self.first = e
             if self.best is None or c < self.best.cost:
@@ -79,3 +102,18 @@ class LapObjective:
             if self.on_lap is not None:
                 self.on_lap(e)
         return costs
+
+    def at(self, z: np.ndarray) -> Evaluation | None:
+        """The evaluation of a point already evaluated (e.g. an iteration's accepted point)."""
+        return self._seen.get(np.asarray(z, dtype=float).tobytes())
+
+    def by_scenario(self, e: Evaluation) -> list[dict]:
+        """Per scenario: its label, lap times of the completed laps, and how many of its seeds completed."""
+        k = len(self.envelope.seeds)
+        out = []
+        for j, sc in enumerate(self.envelope.scenarios):
+            laps = e.laps[j * k:(j + 1) * k]
+            done = [r.lap_time_s for r in laps if r.completed]
+            out.append({"scenario": label(sc), "values": sc, "lap_times_s": done, "completed": len(done),
+                        "laps": len(laps), "failures": sorted({r.failure for r in laps if not r.completed})})
+        return out

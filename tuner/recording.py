@@ -7,12 +7,12 @@ Each writer takes ``save`` (a path or None) and ``view`` (stream to the viewer) 
 from __future__ import annotations
 
 import os
+import re
 from typing import Sequence
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
-from PIL import Image
 
 from twin import recording as twin_recording
 from twin.digital_twin import DigitalTwin
@@ -32,14 +32,16 @@ def _series(rec: rr.RecordingStream, entity: str, index: list, values) -> None:
 
 
 def save_tuning(save: str | None, view: bool, twin: DigitalTwin, space: SearchSpace, iterations: Sequence[Iteration],
-                best_lap: LapResult) -> str | None:
-    """Each iteration's lap time and parameters (raw and as a fraction of their bounds), and the best lap."""
+                best_lap: LapResult, per_iteration: Sequence[dict] = ()) -> str | None:
+    """Each iteration's cost and parameters (raw and as a fraction of their bounds), each scenario's median lap
+    per iteration (``per_iteration``: the tuner's records), and the best lap."""
     if not save and not view:
         return None
     blueprint = rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(
-                rrb.TimeSeriesView(name="lap time [s]", origin="/tuning/lap_time"),
+                rrb.TimeSeriesView(name="cost (lap time, failures penalised) [s]", origin="/tuning/lap_time"),
+                rrb.TimeSeriesView(name="median lap per scenario [s]", origin="/tuning/scenario"),
                 rrb.TimeSeriesView(name="parameters (fraction of their bounds) [-]", origin="/tuning/normalised"),
             ),
             rrb.Spatial2DView(name="best lap", origin="/track"),
@@ -52,6 +54,11 @@ def save_tuning(save: str | None, view: bool, twin: DigitalTwin, space: SearchSp
         for i, a in enumerate(space.addresses):
             _series(rec, f"tuning/normalised/{a}", index, np.array([it.z[i] for it in iterations]))
             _series(rec, f"tuning/value/{a}", index, space.from_unit(np.array([it.z for it in iterations]))[:, i])
+        for j, name in enumerate(r["scenario"] for r in (per_iteration[0]["scenarios"] if per_iteration else [])):
+            medians = [float(np.median(it["scenarios"][j]["lap_times_s"])) if it["scenarios"][j]["lap_times_s"]
+                       else np.nan for it in per_iteration]
+            _series(rec, f"tuning/scenario/{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}", [rr.TimeColumn("iteration", sequence=[it["iteration"] for it in
+                                                                                          per_iteration])], medians)
         log_track(rec, twin.track, twin.texture)
         log_lap(rec, twin.track, twin.texture, best_lap, "best")
     return _saved(save)
@@ -94,20 +101,6 @@ def save_trace_alignment(save: str | None, view: bool, tel: Telemetry, result) -
             _series(rec, f"trace/wheel_left/{who}", index, wl)
             _series(rec, f"trace/wheel_right/{who}", index, wr)
             _series(rec, f"trace/line_position/{who}", index, pos)
-    return _saved(save)
-
-
-def save_design(save: str | None, view: bool, charts: dict[str, str]) -> str | None:
-    """The design study's charts (box plot of lap times, Pareto view) as images."""
-    if not save and not view:
-        return None
-    blueprint = rrb.Blueprint(rrb.Horizontal(
-        rrb.Spatial2DView(name="lap times", origin="/design/lap_times"),
-        rrb.Spatial2DView(name="Pareto", origin="/design/pareto")), collapse_panels=True)
-    with recording(save, view, blueprint) as rec:
-        for entity, key in (("design/lap_times", "chart"), ("design/pareto", "pareto")):
-            with Image.open(charts[key]) as img:
-                rr.log(entity, rr.Image(np.asarray(img.convert("RGB"))), static=True, recording=rec)
     return _saved(save)
 
 

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from typing import Iterator, Sequence
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+from PIL import Image
 
 from mjcf.track import FloorTexture, Track
 from lf_common.files import atomic_path, check_output_file, rrd_is_ours
@@ -151,4 +153,18 @@ def save_laps(save: str | None, view: bool, track: Track, texture: FloorTexture,
         log_track(rec, track, texture)
         for r, n in zip(results, names):
             log_lap(rec, track, texture, r, n)
+    return os.path.abspath(save) if save else None
+
+
+def save_charts(save: str | None, view: bool, charts: dict[str, str]) -> str | None:
+    """PNG charts as images, one panel each ({panel name: PNG path}); returns the saved path, if any."""
+    if not save and not view:
+        return None
+    entities = {name: "charts/" + re.sub(r"[^A-Za-z0-9_.-]+", "_", name) for name in charts}
+    blueprint = rrb.Blueprint(rrb.Horizontal(*(rrb.Spatial2DView(name=name, origin="/" + e) for name, e in entities.items())),
+                              collapse_panels=True)
+    with recording(save, view, blueprint) as rec:
+        for name, path in charts.items():
+            with Image.open(path) as img:
+                rr.log(entities[name], rr.Image(np.asarray(img.convert("RGB"))), static=True, recording=rec)
     return os.path.abspath(save) if save else None

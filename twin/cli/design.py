@@ -14,7 +14,6 @@ from twin.errors import TwinError
 from twin.models import default_space
 from tuner.design import DEFAULT_GRID, grid, pareto, study, trend
 from tuner.design_report import write_report
-from tuner.recording import save_design
 
 HELP = "design study: rebuild, tune and race every design of a grid over cad.* parameters"
 
@@ -69,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     meta = {"track": args.track, "grid": {a: list(v) for a, v in params.items()}, "fixed": base["values"],
             "laps_per_design": args.laps, "wall_s": wall}
     paths = write_report(args.out_dir, results, front, trends, meta)
-    paths["recording"] = save_design(args.save, args.view, paths)
+    paths["recording"] = recording.save_charts(args.save, args.view, {"lap times": paths["chart"], "Pareto": paths["pareto"]})
     out.document({**meta, "outputs": paths, "trends": trends,
                   "designs": [{"design": r.design, "ok": r.ok, "error": r.error,
                                "median_lap_time_s": r.median_s if r.ok else None, "laps_completed": len(r.lap_times_s),

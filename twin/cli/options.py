@@ -174,18 +174,18 @@ def parse_bounds(items: Sequence[str] | None, addresses: Sequence[str] | None = 
     return out
 
 
-def parse_grid(items: Sequence[str] | None) -> dict[str, tuple[float, ...]]:
+def parse_grid(items: Sequence[str] | None, flag: str = "--grid") -> dict[str, tuple[float, ...]]:
     """``["cad.L=0.035,0.045"]`` → {"cad.L": (0.035, 0.045)}."""
     out: dict[str, tuple[float, ...]] = {}
-    for address, text in parse_assignments(items, "--grid").items():
+    for address, text in parse_assignments(items, flag).items():
         try:
             values = tuple(float(v) for v in str(text).split(","))
         except ValueError:
-            raise TwinError(f"--grid {address}={text}: expected comma-separated numbers, e.g. cad.L=0.035,0.045") from None
+            raise TwinError(f"{flag} {address}={text}: expected comma-separated numbers, e.g. {address}=0.6,0.9") from None
         if not all(math.isfinite(v) for v in values):
-            raise TwinError(f"--grid {address}={text}: values must be finite")
+            raise TwinError(f"{flag} {address}={text}: values must be finite")
         if len(set(values)) != len(values):
-            raise TwinError(f"--grid {address}={text}: a value is given twice")
+            raise TwinError(f"{flag} {address}={text}: a value is given twice")
         out[address] = values
     return out
 

@@ -2,7 +2,10 @@
 by gradient descent on the lap time (Eq. 12).
 
 With no options it tunes v_max, K_B, K_P, K_I, K_D of the default robot on the default track from the default
-gains. Ctrl-C stops after the current iteration, reports, and writes the best values found so far.
+gains, on one noise seed. With --robust (or --scenario/--seeds/--risk) every step judges the gains over an
+envelope of conditions (tyre grip, battery, noise seeds; see tuner.envelope) in one batch of laps. At the end the
+gains are raced on noise seeds never used in tuning (--held-out), so the generalisation gap shows. Ctrl-C stops
+after the current iteration, reports, and writes the best values found so far.
 """
 
 from __future__ import annotations
@@ -12,14 +15,18 @@ import signal
 import sys
 import time
 
+import numpy as np
+
 from lf_common.files import check_output_file, json_is_ours
 from twin import recording
 from twin.cli import options as o
 from twin.cli.guard import run_command
 from twin.cli.output import Output
 from twin.closed_loop import run_laps
+from twin.model_space import ChangeCost
 from twin.parameter_files import save_values
 from tuner.gradient import DescentOptions, descend, sequential
+from tuner.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk, held_out_seeds, label
 from tuner.objective import LapObjective
 from tuner.recording import save_tuning
 from tuner.space import SearchSpace, TunerError
@@ -51,7 +58,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                     "differ between the laps of one batch")
     o.add_world(p)
     o.add_values(p, "a fixed model-space parameter, repeatable")
-    o.add_seed(p, 0, "sensor-noise seed, shared by every lap")
+    o.add_seed(p, 0, "the first sensor-noise seed; every point of the search uses the same seeds")
+    p.add_argument("--scenario", action="append", metavar="ADDRESS=V1,V2,...",
+                   help="judge the gains under each of these values too (repeatable: every combination)")
+    p.add_argument("--seeds", type=o.count_type, metavar="N", help="noise seeds per scenario (default 1; --robust: "
+                   f"{ROBUST_SEEDS})")
+    p.add_argument("--risk", metavar="mean|worst|cvar:ALPHA", help="how the laps of one gain vector add up (default "
+                   f"mean; --robust: {ROBUST_RISK})")
+    p.add_argument("--robust", action="store_true", help="the realistic envelope of the default robot: "
+                   + ", ".join(f"{a} in {{{', '.join(f'{v:g}' for v in vs)}}}" for a, vs in ROBUST_AXES.items())
+                   + f", {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap (see tuner.envelope for the sources)")
+    p.add_argument("--held-out", type=o.number(0, 1000, integer=True), default=20, metavar="N",
+                   help="race the final gains on N seeds never used in tuning, in every corner of the envelope")
     p.add_argument("--max-iter", type=o.count_type, default=30, metavar="N", help="iteration cap")
     o.add_workers(p, "laps of a batch (threads)")
     p.add_argument("--threads", dest="workers", type=o.number(0, 1024, integer=True),
@@ -69,6 +87,42 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def envelope_from(args: argparse.Namespace, twin) -> tuple[Envelope, Risk]:
+    """The envelope and risk the flags describe: --robust's preset, overridden by --scenario/--seeds/--risk."""
+    axes = dict(ROBUST_AXES) if args.robust else {}
+    for address, values in o.parse_grid(args.scenario, "--scenario").items():
+        axes[address] = values
+    for address, values in axes.items():
+        p = twin.space.parameter(address)
+        if p.cost is ChangeCost.REBUILD:
+            raise TunerError(f"--scenario {address}: rebuilds the robot or track, so it cannot vary within one batch")
+        for v in values:
+            p.check(f"--scenario {address}", v)
+    count = args.seeds or (ROBUST_SEEDS if args.robust else 1)
+    risk = Risk.parse(args.risk or (ROBUST_RISK if args.robust else "mean"))
+    return Envelope.of(axes, range(args.seed, args.seed + count)), risk
+
+
+def held_out(twin, values: dict, envelope: Envelope, count: int, workers: int) -> dict | None:
+    """The final values raced on ``count`` seeds never used in tuning, in every corner of the envelope: one batch."""
+    if count == 0:
+        return None
+    seeds = held_out_seeds(envelope, count)
+    corners = envelope.corners or [{}]
+    laps = run_laps(twin, [{**values, **c} for c in corners for _ in seeds], seed=[s for _ in corners for s in seeds],
+                    nthread=workers, keep_traces=False)
+    rows = []
+    for j, c in enumerate(corners):
+        part = laps[j * count:(j + 1) * count]
+        done = [r.lap_time_s for r in part if r.completed]
+        rows.append({"scenario": label(c), "values": c, "completed": len(done), "laps": count,
+                     "median_lap_time_s": float(np.median(done)) if done else None,
+                     "worst_lap_time_s": max(done) if done else None,
+                     "failures": sorted({r.failure for r in part if not r.completed})})
+    total = sum(r["completed"] for r in rows)
+    return {"seeds": [seeds[0], seeds[-1]], "completion_rate": total / (count * len(corners)), "corners": rows}
+
+
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     if args.out:
@@ -77,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
     twin = o.twin_from_args(args)
     space = SearchSpace(twin.space, args.param or (), o.parse_bounds(args.bounds))
     x0 = space.start(twin.space)
-    objective = LapObjective(twin, space, seed=args.seed, nthread=args.workers)
+    envelope, risk = envelope_from(args, twin)
+    objective = LapObjective(twin, space, nthread=args.workers, envelope=envelope, risk=risk)
     stop = _StopRequest()
     previous = signal.signal(signal.SIGINT, stop)
     t0 = time.perf_counter()
@@ -86,10 +141,14 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(total=args.max_iter, desc=f"tuning ({args.method})", unit="it", file=sys.stderr, disable=args.quiet or None)
     iterations = []
 
+    per_iteration = []
+
     def on_iteration(it):
         iterations.append(it)
+        e = objective.at(it.z)
+        per_iteration.append({"iteration": it.k, "cost_s": it.cost, "scenarios": objective.by_scenario(e) if e else []})
         bar.update(1)
-        bar.set_postfix_str(f"lap {objective.best.cost:.3f} s, {objective.laps} laps")
+        bar.set_postfix_str(f"cost {objective.best.cost:.3f} s, {objective.laps} laps")
         if stop.requested:
             raise _Stop
 
@@ -109,12 +168,15 @@ def run(args: argparse.Namespace) -> int:
         raise TunerError("interrupted before the first lap finished: nothing to report")
     values = space.assignments(best.x)
     final = best.lap
+    held = held_out(twin, values, envelope, args.held_out, args.workers)
     summary = {
         "method": args.method, "initial_lap_time_s": objective.first.lap.lap_time_s, "initial_cost_s": objective.first.cost,
         "final_lap_time_s": final.lap_time_s, "final_cost_s": best.cost, "completed": final.completed,
         "iterations": len(iterations), "laps_simulated": objective.laps, "wall_s": wall, "values": values,
         "converged": converged, "reason": reason, "interrupted": interrupted, "seed": args.seed,
-        "track": twin.track.name, "out": None, "recording": None,
+        "track": twin.track.name, "out": None, "recording": None, "risk": str(risk),
+        "envelope": {"scenarios": [label(sc) for sc in envelope.scenarios], "seeds": list(envelope.seeds)},
+        "final_scenarios": objective.by_scenario(best), "per_iteration": per_iteration, "held_out": held,
         "loads_with": "--gains" if all(a.startswith("control.") for a in values) else "--params",
     }
     if all(a.startswith("control.") for a in values):
@@ -125,12 +187,24 @@ def run(args: argparse.Namespace) -> int:
     if args.save or args.view:
         twin.update(values)
         best_lap = run_laps(twin, [{}], seed=args.seed)[0]
-        summary["recording"] = save_tuning(args.save, args.view, twin, space, iterations, best_lap)
+        summary["recording"] = save_tuning(args.save, args.view, twin, space, iterations, best_lap, per_iteration)
     out.document(summary)
     t_final = f"{final.lap_time_s:.3f} s" if final.completed else f"not completed ({final.failure})"
     out.say(f"{args.method}: lap {objective.first.cost:.3f} s → {t_final} in {len(iterations)} iterations, "
             f"{objective.laps} laps, {wall:.1f} s ({reason})")
     out.say("values: " + ", ".join(f"{a}={v:.4g}" for a, v in values.items()))
+    if len(envelope) > 1:
+        out.say(f"envelope: {len(envelope.scenarios)} scenarios × {len(envelope.seeds)} seeds, {risk} lap cost {best.cost:.3f} s")
+        for row in summary["final_scenarios"]:
+            t = row["lap_times_s"]
+            out.say(f"  {row['scenario']}: {row['completed']}/{row['laps']} laps completed"
+                    + (f", {min(t):.3f}–{max(t):.3f} s" if t else ""))
+    if held:
+        out.say(f"held-out seeds {held['seeds'][0]}–{held['seeds'][1]}: {held['completion_rate'] * 100:.0f} % of laps "
+                "completed over the envelope's corners")
+        for row in held["corners"]:
+            med = f", median {row['median_lap_time_s']:.3f} s" if row["median_lap_time_s"] else ""
+            out.say(f"  {row['scenario']}: {row['completed']}/{row['laps']}{med}")
     if summary["out"]:
         out.say(f"wrote {summary['out']} (load it with {summary['loads_with']})")
     if summary["recording"]:

@@ -1,0 +1,67 @@
+"""``sweep``: where a set of gains stops working: lap time, completion, cross-track error and energy against one
+or two parameters, every grid point raced with several noise seeds, all in one batch."""
+
+from __future__ import annotations
+
+import argparse
+
+from twin import recording
+from twin.cli import options as o
+from twin.cli.output import Output
+from twin.errors import TwinError
+from twin.sweep import Axis, check_axes, sweep, write_sweep
+from lf_common.files import check_output_dir
+
+HELP = "sensitivity sweep: lap time, completion, cross-track error and energy against one or two parameters"
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("sweep", help=HELP, description=HELP + ". Writes sweep.csv, sweep.json and sweep.png (a line "
+                       "chart with the failure region shaded, or heat maps for two parameters) into --out-dir.")
+    p.add_argument("axes", nargs="+", metavar="ADDRESS=LO:HI:N", help="a parameter that can differ between the laps of "
+                   "one batch, from LO to HI in N steps; one or two of them")
+    o.add_world(p)
+    o.add_values(p)
+    o.add_seed(p, 0, "the first noise seed")
+    p.add_argument("--seeds", type=o.number(1, 1000, integer=True), default=3, metavar="N", help="noise seeds per grid point")
+    o.add_workers(p, "laps of the batch (threads)")
+    o.add_out_dir(p, "sweep.csv, sweep.json and sweep.png", "sweep")
+    o.add_json(p)
+    o.add_recording(p, "the charts")
+    o.add_verbose(p)
+    p.set_defaults(run=run)
+
+
+def parse_axis(text: str) -> Axis:
+    address, sep, spec = text.partition("=")
+    parts = spec.split(":")
+    if not sep or len(parts) != 3:
+        raise TwinError(f"sweep {text!r}: expected ADDRESS=LO:HI:N, e.g. motion.mu=0.3:1.2:10")
+    try:
+        lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
+    except ValueError:
+        raise TwinError(f"sweep {text!r}: LO and HI must be numbers and N a whole number") from None
+    return Axis(address.strip(), lo, hi, n)
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    check_output_dir(args.out_dir, "sweep folder")
+    recording.check_targets(args.save, args.view)
+    axes = [parse_axis(a) for a in args.axes]
+    twin = o.twin_from_args(args)
+    check_axes(twin, axes)
+    seeds = list(range(args.seed, args.seed + args.seeds))
+    points = sweep(twin, axes, seeds, nthread=args.workers)
+    meta = {"track": twin.track.name, "seeds": seeds, "base": {a: twin.space.get(a) for a in twin.space.addresses
+                                                                if a.startswith("control.")}}
+    paths = write_sweep(args.out_dir, axes, points, meta)
+    paths["recording"] = recording.save_charts(args.save, args.view, {"sweep": paths["png"]})
+    out.document({**meta, "outputs": paths, "points": [p.row() for p in points]})
+    failing = [p for p in points if p.completion < 1]
+    for p in points:
+        where = ", ".join(f"{a}={v:.4g}" for a, v in p.values.items())
+        t = f"median {p.median_s:.3f} s" if p.lap_times_s else "no lap completed"
+        out.say(f"{where}: {len(p.lap_times_s)}/{p.laps} laps, {t}, max cross-track {p.max_cross_track_m * 1000:.1f} mm")
+    out.say(f"{len(points)} points × {len(seeds)} seeds; {len(failing)} points with failed laps; wrote {paths['folder']}")
+    return 0
