@@ -156,8 +156,8 @@ def heat_map(path: str, axes: Sequence[Axis], points: Sequence[Point], title: st
     fig, panels = plt.subplots(1, 2, figsize=(11, 4.5), dpi=110)
     extent = [b.lower, b.upper, a.lower, a.upper]
     for ax, (name, m) in zip(panels, maps):
-        image = ax.imshow(np.ma.masked_invalid(m), origin="lower", aspect="auto", extent=extent, cmap="viridis")
-        image.cmap.set_bad("tab:red")  # no completed lap at all
+        cmap = plt.get_cmap("viridis").with_extremes(bad="tab:red")  # red: no completed lap at all
+        image = ax.imshow(np.ma.masked_invalid(m), origin="lower", aspect="auto", extent=extent, cmap=cmap)
         fig.colorbar(image, ax=ax, label=name)
         ax.set_xlabel(b.address)
         ax.set_ylabel(a.address)
