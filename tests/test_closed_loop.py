@@ -257,3 +257,14 @@ def test_per_lap_seeds_equal_laps_run_with_one_seed_each(twin):
     alone = [run_laps(twin, [v], seed=s, keep_traces=False)[0] for v, s in (({}, 3), ({"control.kp": 18.0}, 0), ({}, 5))]
     assert [r.summary() for r in together] == [r.summary() for r in alone]
     assert together[0].lap_time_s != together[2].lap_time_s  # the seeds did differ
+
+
+def test_a_supply_voltage_varied_in_a_batch_is_the_one_simulated():
+    """The PWM duty drives the lap's own battery voltage: a 4.8 V variant in a batch equals a twin set to 4.8 V."""
+    base = DigitalTwin(track="oval")
+    low = DigitalTwin(track="oval")
+    low.set("motor.supply_voltage", 4.8)
+    batched = run_laps(base, [{}, {"motor.supply_voltage": 4.8}], seed=0)
+    alone = run_laps(low, [{}], seed=0)[0]
+    assert batched[1].summary() == alone.summary()
+    assert batched[1].lap_time_s > batched[0].lap_time_s * 1.1  # 20 % less voltage: clearly slower

@@ -33,7 +33,6 @@ import numpy as np
 
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
-from twin.lap import LapResult
 from twin.model_space import ChangeCost
 from tuner.space import TunerError
 
@@ -91,8 +90,13 @@ class LapTimeAlignment:
 
 
 def _lap_times(twin: DigitalTwin, address: str, values, seed: int, nthread: int) -> list[float | None]:
-    results: list[LapResult] = run_laps(twin, [{address: float(v)} for v in values], seed=seed, nthread=nthread,
-                                        keep_traces=False)
+    """The lap time at each value (None: the lap failed): one batch, or, for a parameter that rebuilds the robot,
+    one build and lap per value."""
+    if twin.space.parameter(address).cost is ChangeCost.REBUILD:
+        results = [run_laps(twin.clone({address: float(v)}), [{}], seed=seed, nthread=nthread, keep_traces=False)[0]
+                   for v in values]
+    else:
+        results = run_laps(twin, [{address: float(v)} for v in values], seed=seed, nthread=nthread, keep_traces=False)
     return [r.lap_time_s if r.completed else None for r in results]
 
 
@@ -181,12 +185,14 @@ def align_lap_time(
     max_iter: int = 20,
     nthread: int = 0,
 ) -> LapTimeAlignment:
-    """Align one parameter to a measured lap time (see the module docstring)."""
+    """Align one parameter to a measured lap time (see the module docstring). A parameter that rebuilds the robot
+    (``cad.*``) is searched too, one build per value, so it costs far more wall time."""
     if not (isinstance(measured_lap_time_s, (int, float)) and math.isfinite(measured_lap_time_s) and measured_lap_time_s > 0):
         raise TunerError(f"measured lap time: must be a finite number of seconds > 0, got {measured_lap_time_s!r}")
     p = twin.space.parameter(address)
-    if p.cost is ChangeCost.REBUILD or p.integer:
-        raise TunerError(f"{address}: alignment searches parameters that can differ between the laps of one batch")
+    if p.integer:
+        raise TunerError(f"{address}: a whole-number parameter cannot be aligned to a lap time")
+    twin.checked_values({address: twin.space.get(address)})  # a cad.* address of a URDF robot: refused here
     if bounds is None:  # a range of its own, else a factor of RELATIVE_RANGE either side of the current value
         v = twin.space.get(address)
         bounds = DEFAULT_RANGES.get(address) or (

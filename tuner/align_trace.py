@@ -78,6 +78,17 @@ def odometry(t: np.ndarray, wl: np.ndarray, wr: np.ndarray, radius: float) -> np
     return np.maximum.accumulate(s) + 1e-9 * np.arange(len(s))
 
 
+def wheel_residuals(lap: LapResult, tel: Telemetry, radius: float, s_tel: np.ndarray | None = None) -> np.ndarray:
+    """The twin's left then right wheel speeds minus the run's, compared at equal odometric distance [rad/s]."""
+    tr = lap.trace
+    if tr is None:
+        raise TunerError("trace alignment: the lap has no trace")
+    s_tel = odometry(tel.t, tel.wl, tel.wr, radius) if s_tel is None else s_tel
+    wl, wr = tr.column("wheel_left_radps"), tr.column("wheel_right_radps")
+    s_sim = odometry(tr.time_s, wl, wr, radius)
+    return np.concatenate([np.interp(s_tel, s_sim, wl) - tel.wl, np.interp(s_tel, s_sim, wr) - tel.wr])
+
+
 class _Residual:
     def __init__(self, twin, tel: Telemetry, addresses, nominal, seed, nthread):
         self.twin, self.tel, self.addresses, self.nominal = twin, tel, addresses, nominal
@@ -97,12 +108,7 @@ class _Residual:
         X = X.reshape(len(self.addresses), -1)
         out = []
         for r in self.laps_for(X):
-            tr = r.trace
-            wl, wr = tr.column("wheel_left_radps"), tr.column("wheel_right_radps")
-            s_sim = odometry(tr.time_s, wl, wr, self.radius)
-            parts = [(np.interp(self.s_tel, s_sim, wl) - self.tel.wl) / WHEEL_SCALE,
-                     (np.interp(self.s_tel, s_sim, wr) - self.tel.wr) / WHEEL_SCALE]
-            res = np.concatenate(parts) * self.weight
+            res = wheel_residuals(r, self.tel, self.radius, self.s_tel) / WHEEL_SCALE * self.weight
             if self.lap_time is not None:
                 lt = r.lap_time_s if r.completed else r.simulated_s + FAIL_PENALTY_S
                 res = np.append(res, (lt - self.lap_time) / LAP_SCALE)

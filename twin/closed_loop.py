@@ -24,7 +24,7 @@ import mujoco
 import mujoco.batch
 import numpy as np
 
-from mjcf.world import AXLE_SITE, LINE_SENSOR, MOTORS, START_KEY
+from mjcf.world import AXLE_SITE, LINE_SENSOR, MOTORS, START_KEY, PhysicsOptions
 from twin import core
 from twin.controller import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
 from twin.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
@@ -66,7 +66,7 @@ def run_laps(
     """
     if not variants:
         return []
-    seeds = [seed] * len(variants) if isinstance(seed, (int, np.integer)) else list(seed)
+    seeds = list(seed) if isinstance(seed, (list, tuple, range, np.ndarray)) else [seed] * len(variants)
     if len(seeds) != len(variants):
         raise TwinError(f"seeds: {len(seeds)} given for {len(variants)} laps")
     for s in seeds:
@@ -123,7 +123,7 @@ class Fleet:
         """Every simulation on the start line with a fresh head, uncalibrated and in the calibration phase."""
         self.batch.reset(keyframe=np.full(len(self.laps), self.model.key(START_KEY).id), stage=mujoco.mjtStage.mjSTAGE_NONE)
         rows = self.batch.userdata  # (nsim, nuserdata), live view of the state rows
-        self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seeds[i])
+        self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seeds[i], lap.physics)
                      for i, lap in enumerate(self.laps)]
 
     def step(self, ids: np.ndarray, nstep: int) -> None:
@@ -160,8 +160,12 @@ class Fleet:
             self.consumed[i] = written
 
 
-def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: ControlParams, sensor, seed: int) -> core.Sim:
-    """Write one simulation's userdata head: where to find things in the model, and what to run."""
+def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: ControlParams, sensor, seed: int,
+          physics: PhysicsOptions | None = None) -> core.Sim:
+    """Write one simulation's userdata head: where to find things in the model, and what to run.
+
+    ``physics``: the lap's own battery voltage (PWM duty 1 → this voltage) and timestep; default the model's,
+    which are the twin's base values, not a batch variant's."""
     row[:] = 0.0
     sim = core.sim_view(row)
     sim.magic, sim.layout_version, sim.nsensor = core.MAGIC, core.LAYOUT_VERSION, params.count
@@ -179,8 +183,9 @@ def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: Con
     sim.centre_adr, sim.centre_count = int(model.numeric_adr[centre.id]), (int(model.numeric_size[centre.id]) - 1) // 3
     sim.texture_origin_x, sim.texture_origin_y = twin.texture.origin_xy
     sim.texture_metres_per_pixel = twin.texture.metres_per_pixel
-    sim.supply_voltage = float(model.actuator_ctrlrange[sim.actuator_left, 1])
-    sim.timestep = model.opt.timestep
+    physics = physics or twin.physics()
+    sim.supply_voltage = physics.supply_voltage
+    sim.timestep = physics.timestep
     sim.sensor = core.sensor_to_c(sensor)
     sim.firmware = core.params_to_c(params)
     sim.seed = (int(seed) * SEED_SALT + 1) & SEED_MAX

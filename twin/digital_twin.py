@@ -80,6 +80,16 @@ class DigitalTwin:
         self.batches = BatchCache()  # run_laps' mujoco.batch, per build
         self.calibrations = CalibrationCache()  # calibration turns made, per build
 
+    def clone(self, changes: Mapping[str, float] | None = None) -> "DigitalTwin":
+        """Another twin of the same robot on the same track with the same values (and ``changes``), built on its
+        own: a change that rebuilds it never touches this one."""
+        other = DigitalTwin(track=self.track_source, robot_urdf=self.robot_urdf, robot_config=self.robot_config,
+                            track_metres_per_pixel=self.track_metres_per_pixel)
+        other.space.values.update(self.space.values)
+        if changes:
+            other.update(dict(changes))
+        return other
+
     # --- parameters
     def _check_applies(self, address: str) -> None:
         """CAD parameters shape the generated robot; a given URDF is its own CAD model."""
