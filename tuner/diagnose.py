@@ -134,8 +134,9 @@ def _rank_key(d: Diagnosis):
 
 def diagnose(twin: DigitalTwin, measured: float | None, candidates: Sequence[str] = DEFAULT_CANDIDATES,
              tel: Telemetry | None = None, seed: int = 0, nthread: int = 0,
-             on_candidate=None) -> DiagnosisReport:
-    """Rank the candidates (see the module docstring). ``measured`` defaults to the telemetry's lap time."""
+             on_candidate=None, joint: bool = True) -> DiagnosisReport:
+    """Rank the candidates (see the module docstring). ``measured`` defaults to the telemetry's lap time;
+    ``joint``: with telemetry, also fit the best two together (the most expensive step)."""
     if measured is None:
         measured = tel.lap_time_s if tel is not None else None
     if measured is None or not (math.isfinite(measured) and measured > 0):
@@ -158,10 +159,11 @@ def diagnose(twin: DigitalTwin, measured: float | None, candidates: Sequence[str
         if on_candidate is not None:
             on_candidate(results[-1])
     ranked = tuple(sorted(results, key=_rank_key))
-    joint = None
-    if tel is not None:
+    pair_fit = None
+    if tel is not None and joint:
         pair = [d.address for d in ranked if d.explained and twin.space.parameter(d.address).cost is not ChangeCost.REBUILD][:2]
         if len(pair) == 2:
-            joint = align_telemetry(twin, tel, pair, seed=seed, nthread=nthread)
-    return DiagnosisReport(measured, nominal_lap.lap_time_s if nominal_lap.completed else None, ranked, joint,
+            pair_fit = align_telemetry(twin, tel, pair, seed=seed, nthread=nthread,
+                                       start={d.address: d.value for d in ranked if d.address in pair})
+    return DiagnosisReport(measured, nominal_lap.lap_time_s if nominal_lap.completed else None, ranked, pair_fit,
                            tuple(skipped))

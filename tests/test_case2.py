@@ -1,0 +1,113 @@
+"""Case 2 of the paper across the realistic range: a robot slower than its twin, explained.
+
+With robust gains (what ``python -m tuner --robust`` converged to on the default track; they are inputs here,
+the expected values come from the hidden parameters each test sets), a robot whose tyres lost up to a third of
+their grip still finishes, and the twin finds out why from its lap time or its telemetry.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from twin.closed_loop import run_laps
+from twin.digital_twin import DigitalTwin
+from twin.telemetry import lap_lines, read_telemetry, telemetry_header, write_telemetry
+from tuner.align import align_lap_time
+from tuner.align_trace import align_telemetry
+from tuner.diagnose import diagnose
+
+ROBUST = {"control.v_max": 1.008, "control.kb": 0.1857, "control.kp": 18.5984, "control.ki": 0.0051,
+          "control.kd": 0.3053}
+ROBOT_SEED = 7  # the robot's noise is not the twin's (seed 0)
+
+
+@pytest.fixture(scope="module")
+def robust_twin():
+    t = DigitalTwin()
+    t.update(ROBUST)
+    return t
+
+
+def record(twin: DigitalTwin, hidden: dict, path) -> str:
+    lap = run_laps(twin, [hidden], seed=ROBOT_SEED)[0]
+    assert lap.completed, lap.failure  # the robot finishes, only slower
+    return write_telemetry(str(path), lap_lines(lap, telemetry_header(twin, "default", ROBOT_SEED), 2))
+
+
+@pytest.mark.parametrize("mu", [0.6, 0.7])
+def test_lap_time_alignment_recovers_grip_on_another_seed(robust_twin, mu):
+    measured = run_laps(robust_twin, [{"motion.mu": mu}], seed=ROBOT_SEED)[0]
+    assert measured.completed
+    r = align_lap_time(robust_twin, measured.lap_time_s)
+    assert r.explained and r.value == pytest.approx(mu, rel=0.05)
+    assert r.simulated_lap_time_s == pytest.approx(measured.lap_time_s, rel=0.005)
+
+
+def test_the_refined_scan_finds_a_value_inside_a_narrow_steep_band():
+    """Default gains: the lap is 1–7 % slower than nominal only in a narrow band of μ just above where it fails.
+    The band is located here with a sweep, not written down."""
+    twin = DigitalTwin()
+    mus = np.geomspace(0.15, 0.5, 28)
+    laps = run_laps(twin, [{"motion.mu": float(m)} for m in mus], seed=0, keep_traces=False)
+    nominal = run_laps(twin, [{}], seed=0)[0].lap_time_s
+    band = [(m, r.lap_time_s) for m, r in zip(mus, laps) if r.completed and 1.01 < r.lap_time_s / nominal < 1.07]
+    assert band, "no steep band on this track"
+    hidden, measured = band[len(band) // 2]
+    r = align_lap_time(twin, measured, bounds=(0.15, 2.0))
+    assert r.explained
+    assert any(s.consistent[0] * 0.98 <= hidden <= s.consistent[1] * 1.02 for s in r.solutions), (hidden, r.solutions)
+
+
+def test_telemetry_recovers_grip_and_battery_with_intervals_that_cover_them(robust_twin, tmp_path):
+    hidden = {"motion.mu": 0.62, "motor.supply_voltage": 5.0}
+    tel = read_telemetry(record(robust_twin, hidden, tmp_path / "run.jsonl"))
+    r = align_telemetry(robust_twin, tel, ["motion.mu", "motor.supply_voltage"])
+    for p in r.parameters:
+        assert p.identifiable, p.note
+        assert p.value == pytest.approx(hidden[p.address], rel=0.05)
+        assert p.ci95[0] <= hidden[p.address] <= p.ci95[1], (p.address, p.ci95)
+
+
+def test_a_parameter_the_run_cannot_pin_is_named_with_the_evidence(robust_twin, tmp_path):
+    """Grippy tyres on a tired battery: the robot never needs all its grip, so any μ above what it needs fits as
+    well; the battery is pinned."""
+    hidden = {"motion.mu": 1.2, "motor.supply_voltage": 4.9}
+    tel = read_telemetry(record(robust_twin, hidden, tmp_path / "run.jsonl"))
+    mu, volts = align_telemetry(robust_twin, tel, ["motion.mu", "motor.supply_voltage"]).parameters
+    assert not mu.identifiable and "not identifiable" in mu.note and "misfit" in mu.note
+    assert volts.identifiable and volts.value == pytest.approx(4.9, rel=0.05)
+
+
+def test_intervals_cover_the_truth_in_a_small_coverage_study(tmp_path):
+    """Hidden winding resistance × robot noise seeds on the oval: the stated 95 % intervals must cover the truth
+    (4 trials: at 95 % all four are covered with probability 0.81, three or more with 0.99)."""
+    twin = DigitalTwin(track="oval")
+    twin.update({"control.v_max": 1.0, "control.kb": 0.3, "control.kp": 25.0, "control.kd": 0.5})
+    covered = []
+    for r_m in (8.0, 11.0):
+        for seed in (7, 8):
+            lap = run_laps(twin, [{"motor.R_M": r_m}], seed=seed)[0]
+            header = telemetry_header(twin, "oval", seed)
+            tel_path = str(tmp_path / f"run-{r_m}-{seed}.jsonl")
+            write_telemetry(tel_path, lap_lines(lap, header, 2))
+            (p,) = align_telemetry(twin, read_telemetry(tel_path), ["motor.R_M"]).parameters
+            covered.append(p.ci95[0] <= r_m <= p.ci95[1])
+    assert sum(covered) >= 3, covered
+
+
+def test_diagnosis_ranks_a_tired_battery_first_from_the_lap_time():
+    twin = DigitalTwin(track="oval")
+    measured = run_laps(twin.clone({"motor.supply_voltage": 5.0}), [{}], seed=ROBOT_SEED)[0].lap_time_s
+    report = diagnose(twin, measured, seed=0)
+    best = report.candidates[0]
+    assert best.address == "motor.supply_voltage" and best.value == pytest.approx(5.0, rel=0.05) and best.plausible
+
+
+def test_diagnosis_ranks_dirty_tyres_first_from_the_traces(robust_twin, tmp_path):
+    tel = read_telemetry(record(robust_twin, {"motion.mu": 0.6}, tmp_path / "run.jsonl"))
+    report = diagnose(robust_twin, None, ["motion.mu", "motor.supply_voltage", "motor.R_M"], tel=tel, joint=False)
+    best = report.candidates[0]
+    assert best.address == "motion.mu" and best.value == pytest.approx(0.6, rel=0.05)
+    others = [d.trace_rms_radps for d in report.candidates[1:] if d.explained]
+    assert all(best.trace_rms_radps < o for o in others)
