@@ -17,8 +17,12 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from lf_common.errors import InputTooLarge
 from mjcf.errors import MjcfError
 
+# the largest floor texture: at about 40 bytes a pixel through reading, tracing and the world, 16 MP is ≈ 0.6 GB,
+# and 4 × 4 m at 1 mm per pixel (twice that at 2 mm), more than a line-follower track needs
+MAX_TEXTURE_PIXELS = 16_000_000
 LINE_WIDTH_M = 0.019  # 3/4" electrical tape, the usual line-follower track (Pololu, RoboGames rules)
 SAMPLE_SPACING_M = 0.0005  # centre-line polyline spacing; chord error < 0.2 µm at r = 0.15 m
 GROUND_GREY = 235  # reflectance of white board, 8-bit grey level
@@ -164,6 +168,11 @@ class Track:
         hi = hi + margin_m
         w = int(math.ceil((hi[0] - lo[0]) / metres_per_pixel))
         h = int(math.ceil((hi[1] - lo[1]) / metres_per_pixel))
+        if w * h > MAX_TEXTURE_PIXELS:
+            raise InputTooLarge(
+                f"track {self.name}: its floor at {metres_per_pixel * 1000:g} mm per pixel is {w}×{h} px, more than the "
+                f"{MAX_TEXTURE_PIXELS / 1e6:g} megapixel limit; use a coarser environment.texture_resolution (at least "
+                f"{metres_per_pixel * math.sqrt(w * h / MAX_TEXTURE_PIXELS) * 1000:.2f} mm)")
         grey = np.full((h, w), GROUND_GREY, dtype=np.uint8)
         tex = FloorTexture(grey, (float(lo[0]), float(lo[1])), metres_per_pixel)
         half = self.line_width_m / 2

@@ -19,7 +19,6 @@ import logging
 import math
 import os
 import re
-import tempfile
 import xml.etree.ElementTree as ET
 
 import mujoco
@@ -27,11 +26,16 @@ import numpy as np
 import trimesh
 import yourdfpy
 
+from lf_common.cache import cache_dir, cached_folder
+from lf_common.errors import InputTooLarge
 from mjcf.errors import MjcfError
 from mjcf.robot_config import RobotConfig
 
 log = logging.getLogger(__name__)
 
+MAX_MESH_BYTES = 64_000_000  # a mesh file larger than this is a render model, not a collision shape
+MAX_MESH_FACES = 500_000  # trimesh needs ~1.5 kB a face to load and check one (a 2.6M-face OBJ took 3.9 GB)
+MIN_WHEEL_RADIUS, MAX_WHEEL_RADIUS = 0.002, 0.5  # [m] from a micro robot's to a service robot's
 DEFAULT_DENSITY = 1000.0  # [kg/m³], MuJoCo's default; used only for links without <inertial>
 VISUAL_GROUP, COLLISION_GROUP = 2, 3
 MUJOCO_MESH_FORMATS = (".stl", ".obj", ".msh")
@@ -210,7 +214,7 @@ class _Converter:
             for col in link.collisions:
                 if col.geometry is not None and col.geometry.mesh is not None:
                     source = self.resolve(col.geometry.mesh.filename)
-                    if os.path.isfile(source) and not trimesh.load(source, force="mesh").is_watertight:
+                    if os.path.isfile(source) and not load_mesh(source, self.path).is_watertight:
                         raise MjcfError(
                             f"{self.path}: link {link.name} has no <inertial> and its collision mesh "
                             f"{col.geometry.mesh.filename!r} is not watertight, so it has no volume to take inertia from"
@@ -279,7 +283,9 @@ class _Converter:
                 return name
         ext = os.path.splitext(source)[1].lower()
         if ext not in MUJOCO_MESH_FORMATS:
-            source = _converted_mesh(source)  # e.g. COLLADA: MuJoCo reads STL/OBJ/MSH only
+            source = _converted_mesh(source, self.path)  # e.g. COLLADA: MuJoCo reads STL/OBJ/MSH only
+        else:
+            load_mesh(source, self.path)  # the limits and a readable file, before MuJoCo reads it
         name = self.name(f"mesh{len(self._mesh_keys)}_{os.path.splitext(os.path.basename(source))[0]}")
         self.spec.add_mesh(name=name, file=source, scale=scale)
         self._mesh_keys[name] = key
@@ -287,20 +293,38 @@ class _Converter:
         return name
 
 
-def _converted_mesh(source: str) -> str:
-    """A mesh MuJoCo cannot read, converted by trimesh to a cached STL beside it (or in a temp dir)."""
+def load_mesh(source: str, urdf: str) -> trimesh.Trimesh:
+    """A mesh file as one trimesh, within the size limits; errors name the file and what to do."""
+    try:
+        size = os.path.getsize(source)
+    except OSError as e:
+        raise MjcfError(f"{urdf}: mesh {source}: cannot read it ({e.strerror or e})") from None
+    if size > MAX_MESH_BYTES:
+        raise InputTooLarge(f"{urdf}: mesh {source} is {size / 1e6:.0f} MB, more than the {MAX_MESH_BYTES / 1e6:g} MB "
+                            f"limit; simplify it (e.g. decimate to under {MAX_MESH_FACES // 1000}k faces in Blender or "
+                            "MeshLab): a collision shape needs far less")
     try:
         mesh = trimesh.load(source, force="mesh")
-    except Exception as e:
-        raise MjcfError(f"{source}: unreadable mesh ({e})") from None
-    digest = hashlib.sha1(open(source, "rb").read()).hexdigest()[:12]
-    out = os.path.join(tempfile.gettempdir(), "twin-meshes", f"{os.path.basename(source)}.{digest}.stl")
-    if not os.path.isfile(out):
-        os.makedirs(os.path.dirname(out), exist_ok=True)
-        tmp = out + f".{os.getpid()}.tmp"
-        mesh.export(tmp, file_type="stl")
-        os.replace(tmp, out)
-    return out
+    except Exception as e:  # trimesh raises assorted errors for files it cannot parse
+        raise MjcfError(f"{urdf}: mesh {source} is unreadable ({type(e).__name__})") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise MjcfError(f"{urdf}: mesh {source} holds no triangles")
+    if len(mesh.faces) > MAX_MESH_FACES:
+        raise InputTooLarge(f"{urdf}: mesh {source} has {len(mesh.faces)} faces, more than the {MAX_MESH_FACES} limit; "
+                            "simplify it (decimate in Blender or MeshLab)")
+    return mesh
+
+
+def _converted_mesh(source: str, urdf: str) -> str:
+    """A mesh MuJoCo cannot read (e.g. COLLADA), converted by trimesh to an STL in the verified cache, keyed by the
+    source file's content."""
+    mesh = load_mesh(source, urdf)
+    with open(source, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()[:16]
+    name = os.path.basename(source) + ".stl"  # keeps the source's name: assets are saved by file name
+    folder = cached_folder(os.path.join(cache_dir(), "meshes", digest),
+                           lambda tmp: mesh.export(os.path.join(tmp, name), file_type="stl"), "converted mesh")
+    return os.path.join(folder, name)
 
 
 def _joint_frame(conv: _Converter, joint) -> tuple[np.ndarray, np.ndarray]:
@@ -329,7 +353,7 @@ def _wheel_radius(conv: _Converter, joint) -> float:
                 raise MjcfError(f"{conv.path}: wheel {link.name}'s cylinder is not aligned with joint {joint.name}'s axis")
             radii.append(geo.cylinder.radius)
         elif geo.mesh is not None:
-            m = trimesh.load(conv.resolve(geo.mesh.filename), force="mesh")
+            m = load_mesh(conv.resolve(geo.mesh.filename), conv.path)
             v = m.vertices * (1.0 if geo.mesh.scale is None else np.asarray(geo.mesh.scale))
             v = trimesh.transform_points(v, T)
             radii.append(float(np.max(np.linalg.norm(v - np.outer(v @ axis, axis), axis=1))))
@@ -387,6 +411,9 @@ def convert(
     if abs(radius_l - radius_r) > 1e-6:
         conv.notes.append(f"wheel radii differ: {radius_l:.5f} / {radius_r:.5f} m; using the mean")
     radius = (radius_l + radius_r) / 2
+    if not MIN_WHEEL_RADIUS <= radius <= MAX_WHEEL_RADIUS:
+        raise MjcfError(f"{path}: wheel radius {radius:.3g} m is not a wheel's for this twin (expected {MIN_WHEEL_RADIUS * 1000:g} mm "
+                        f"to {MAX_WHEEL_RADIUS:g} m); check the wheels' collision geometry and the URDF's units (metres)")
     axle = (pl + pr) / 2
 
     # --- tyres, caster, sensor mount

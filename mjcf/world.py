@@ -177,11 +177,16 @@ def save_xml(spec: mujoco.MjSpec, out_path: str) -> str:
     copy = spec.copy()
     with atomic_file(out_path, first_line_is_ours, "MJCF file") as f:
         with output_dir(os.path.join(os.path.dirname(full), assets), "MJCF assets folder") as tmp_assets:
+            copied: dict[str, str] = {}  # asset file name → source: two sources of one name get distinct names
             for item in list(copy.meshes) + list(copy.textures):
                 if not item.file:
                     continue
                 base = os.path.basename(item.file)
-                shutil.copyfile(item.file, os.path.join(tmp_assets, base))
+                while copied.get(base, item.file) != item.file:
+                    base = f"_{base}"
+                if base not in copied:
+                    shutil.copyfile(item.file, os.path.join(tmp_assets, base))
+                    copied[base] = item.file
                 item.file = os.path.join(tmp_assets, base)
             try:
                 xml = copy.to_xml()

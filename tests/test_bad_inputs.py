@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from conftest import minimal_urdf
 from twin.cli.main import main
 
 PY = sys.executable
@@ -52,6 +53,15 @@ def bad(tmp_path_factory):
     put("urdf_garbage.urdf", "<robot><link name='a'>")
     put("urdf_cycle.urdf", """<robot name="c"><link name="a"/><link name="b"/>
         <joint name="j" type="fixed"><parent link="a"/><child link="a"/></joint></robot>""")
+    mesh_robot = minimal_urdf().replace('<cylinder radius="0.02" length="0.01"/>', '<mesh filename="wheel.stl"/>')
+    put("wheel.stl", b"solid garbage\n this is not an STL at all")
+    put("urdf_garbage_mesh.urdf", mesh_robot)
+    put("urdf_tiny_wheel.urdf", minimal_urdf().replace('radius="0.02"', 'radius="1e-9"'))
+    d.joinpath("big").mkdir()
+    with open(d / "big" / "wheel.stl", "wb") as f:
+        f.truncate(65_000_000)  # a sparse 65 MB file: refused by its size, never read
+    (d / "big" / "robot.urdf").write_text(mesh_robot)
+    files["urdf_big_mesh.urdf"] = str(d / "big" / "robot.urdf")
     white = np.full((400, 400), 255, np.uint8)
     Image.fromarray(white).save(d / "white.png", dpi=(254, 254))
     files["white.png"] = str(d / "white.png")
@@ -101,6 +111,9 @@ CASES = [
     ("lap --robot {dir}", "{dir}"),
     ("lap --robot {urdf_garbage.urdf}", "well-formed"),
     ("lap --robot {urdf_cycle.urdf}", "{urdf_cycle.urdf}"),
+    ("lap --robot {urdf_garbage_mesh.urdf}", "wheel.stl"),
+    ("lap --robot {urdf_tiny_wheel.urdf}", "wheel radius"),
+    ("lap --robot {urdf_big_mesh.urdf}", "MB limit"),
     ("lap --track {not_a_png.png}", "unreadable track image"),
     ("lap --track {white.png}", "{white.png}"),
     ("lap --track {dpi_1e8.png}", "{dpi_1e8.png}"),

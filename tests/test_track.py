@@ -104,3 +104,21 @@ def test_unreadable_and_open_line_images_are_refused(tmp_path):
 def test_track_rejects_bad_width():
     with pytest.raises(MjcfError, match="line width"):
         Track("x", builtin("circle").centre, line_width_m=float("nan"))
+
+
+def test_a_track_with_specks_and_a_speckled_tape_is_still_one_line(tmp_path):
+    """Dust on the floor and holes in the tape are not other lines: a ring with both traces as before."""
+    n = 400
+    yy, xx = np.mgrid[:n, :n]
+    r = np.hypot(yy - n / 2, xx - n / 2)
+    img = np.full((n, n), 240, np.uint8)
+    img[(r > 150) & (r < 160)] = 20
+    rng = np.random.default_rng(1)
+    for y, x in rng.integers(20, n - 20, size=(30, 2)):
+        img[y:y + 2, x:x + 2] = 20  # 2×2 px specks of dust
+    img[(r > 154) & (r < 156) & (xx > 300)] = 240  # a scratch along the tape
+    path = tmp_path / "specks.png"
+    Image.fromarray(img).save(path, dpi=(25.4, 25.4))  # 1 mm per pixel
+    track, _ = track_from_png(str(path))
+    radius_m = np.hypot(*(track.centre - track.centre.mean(axis=0)).T)
+    assert np.allclose(radius_m, 0.155, atol=0.002)  # 155 px × 1 mm, by construction

@@ -7,7 +7,8 @@ import os
 import numpy as np
 
 from mjcf import track as track_mod
-from mjcf.track import FloorTexture, Track
+from lf_common.errors import InputTooLarge
+from mjcf.track import MAX_TEXTURE_PIXELS, FloorTexture, Track
 from mjcf.track_image import track_from_png
 from twin.errors import TwinError
 
@@ -42,6 +43,10 @@ def load_track(
 def _padded(texture: FloorTexture, margin_m: float) -> FloorTexture:
     """Pad an image with plain ground so a robot near its edge stays on the (finite) floor."""
     pad = int(round(margin_m / texture.metres_per_pixel))
+    h, w = (n + 2 * pad for n in texture.grey.shape)
+    if w * h > MAX_TEXTURE_PIXELS:
+        raise InputTooLarge(f"track image: with the {margin_m:g} m floor margin around it the texture is {w}×{h} px, more than "
+                            f"the {MAX_TEXTURE_PIXELS / 1e6:g} megapixel limit; downsample the image")
     ground = int(np.percentile(texture.grey, 90))
     grey = np.pad(texture.grey, pad, mode="constant", constant_values=ground)
     ox, oy = texture.origin_xy
