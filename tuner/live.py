@@ -1,14 +1,17 @@
-"""The twin beside the robot (paper §3.8, §4.2): read its telemetry live, compare each lap with the twin's
-prediction, and re-align the twin when they keep disagreeing.
+"""The twin beside the robot (paper §3.8, §4.2): compare each lap of its telemetry with the twin's prediction, and
+re-align the twin when they keep disagreeing. Reading the link, logging and locking are :mod:`twin.link`'s.
 
-* Every received line (valid or not) is appended to the telemetry log and the log is flushed to disk at every
-  lap event, so nothing received is lost if the link or this process dies.
-* Corrupted or truncated lines are counted and skipped; a dropped link is reopened with exponential backoff.
-* Each completed lap is compared with the twin's lap under its current parameters: lap time, and the line
-  position trace. When the lap time differs by more than ``threshold`` for ``k_laps`` laps in a row, the
-  aligner (:func:`tuner.align.align_lap_time`) runs in a background thread on its own copy of the twin, on the
-  mean of those laps; its result is applied, logged with the reason, and saved in the state file.
-* A restart replays the log and reloads the state file, so it resumes where it stopped.
+* Each lap is judged before it counts (:class:`LapAssembler`): sample times must increase, positions lie within
+  the header's sensor range, the LAP's lap time agree with its START→LAP span (within ``SPAN_TOLERANCE_S`` +
+  ``SPAN_TOLERANCE_REL``), and the lap time be one a robot can drive (at most ``MAX_SPEED_MPS`` on average, at
+  most the twin's lap timeout). An implausible lap is reported and counted, never used for re-alignment.
+* A completed lap is compared with the twin's lap under its current parameters: lap time and line position.
+  When the lap time differs by more than ``threshold`` for ``k_laps`` laps in a row, the aligner
+  (:func:`tuner.align.align_lap_time`, every range that explains it) runs in a background thread on its own
+  copy of the twin, on the mean of those laps; its result is applied, logged with the reason, and saved.
+* The state file (``"generator"`` JSON, written atomically) holds the aligned value and the alignments. A restart
+  replays the log and reloads the state; a state file that is unreadable or of the wrong shape is set aside
+  (renamed, never deleted) with a warning and rebuilt by replaying the log with re-alignment.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import os
 import threading
 import time
@@ -23,9 +27,13 @@ from typing import Callable
 
 import numpy as np
 
+from lf_common.errors import LineFollowerError
+from lf_common.files import read_text, write_json
 from tuner.align import align_lap_time
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
+from twin.lap import LapLimits
+from twin.link import LinkStats
 from twin.wire import Event, Header, Sample, WireError, decode
 
 log = logging.getLogger(__name__)
@@ -39,33 +47,62 @@ class RobotLap:
     pos: np.ndarray
     wl: np.ndarray
     wr: np.ndarray
+    implausible: str | None = None  # why this lap cannot be what a robot on this track did
+
+
+SPAN_TOLERANCE_S = 0.05  # a LAP's lap time may differ from its START→LAP span by this much, plus …
+SPAN_TOLERANCE_REL = 0.01  # … this fraction of it (firmware clocks and millisecond rounding)
+MAX_SPEED_MPS = 5.0  # no line follower of this class averages more (the 3pi+ Hyper edition tops out near 4 m/s)
+DEFAULT_SENSORS = 8
 
 
 class LapAssembler:
-    """Wire records → completed laps. A lap is the samples between a START and its LAP or FAIL event."""
+    """Wire records → laps. A lap is the samples between a START and its LAP or FAIL event, judged for
+    plausibility against the track length and the longest lap (see the module docstring)."""
 
-    def __init__(self):
+    def __init__(self, track_length_m: float = 0.0, max_lap_s: float = math.inf):
+        self.track_length_m, self.max_lap_s = track_length_m, max_lap_s
+        self.sensors = DEFAULT_SENSORS
         self.start: float | None = None
         self.rows: list[tuple[float, float, float, float]] = []
+        self.problem: str | None = None  # the first implausibility seen in the current lap
         self.count = 0
 
     def feed(self, rec) -> RobotLap | None:
-        if isinstance(rec, (Header,)):
+        if isinstance(rec, Header):
+            self.sensors = rec.sensors
             return None
         if isinstance(rec, Event) and rec.event == "START":
-            self.start, self.rows = rec.t, []
+            self.start, self.rows, self.problem = rec.t, [], None
             return None
         if self.start is None:
             return None  # joined mid-lap: wait for the next start
         if isinstance(rec, Sample):
-            self.rows.append((rec.t - self.start, rec.pos, rec.wl, rec.wr))
+            t = rec.t - self.start
+            if self.rows and t <= self.rows[-1][0]:
+                self.problem = self.problem or f"sample time {rec.t:g} s does not follow {self.rows[-1][0] + self.start:g} s"
+            if not 0 <= rec.pos <= (self.sensors - 1) * 1000:
+                self.problem = self.problem or f"line position {rec.pos} outside 0…{(self.sensors - 1) * 1000} for {self.sensors} sensors"
+            self.rows.append((t, rec.pos, rec.wl, rec.wr))
             return None
         if isinstance(rec, Event) and rec.event in ("LAP", "FAIL"):
+            problem = self.problem or (self._judge_lap(rec) if rec.event == "LAP" else None)
             a = np.array(self.rows) if self.rows else np.zeros((0, 4))
-            lap = RobotLap(self.count, rec.lap_time_s, a[:, 0], a[:, 1], a[:, 2], a[:, 3])
+            lap = RobotLap(self.count, rec.lap_time_s, a[:, 0], a[:, 1], a[:, 2], a[:, 3], problem)
             self.count += 1
-            self.start, self.rows = None, []
+            self.start, self.rows, self.problem = None, [], None
             return lap
+        return None
+
+    def _judge_lap(self, rec: Event) -> str | None:
+        span = rec.t - self.start
+        if abs(rec.lap_time_s - span) > SPAN_TOLERANCE_S + SPAN_TOLERANCE_REL * span:
+            return f"lap time {rec.lap_time_s:g} s disagrees with its START→LAP span of {span:g} s"
+        fastest = self.track_length_m / MAX_SPEED_MPS
+        if rec.lap_time_s < fastest:
+            return f"lap time {rec.lap_time_s:g} s is faster than {MAX_SPEED_MPS:g} m/s around {self.track_length_m:.2f} m"
+        if rec.lap_time_s > self.max_lap_s:
+            return f"lap time {rec.lap_time_s:g} s is longer than the twin's lap limit of {self.max_lap_s:g} s"
         return None
 
 
@@ -84,19 +121,23 @@ class LiveTwin:
     def __init__(self, twin: DigitalTwin, options: LiveOptions, state_path: str | None = None,
                  on_lap: Callable[[dict], None] | None = None):
         self.twin, self.o, self.state_path, self.on_lap = twin, options, state_path, on_lap
-        self.assembler = LapAssembler()
+        twin.model()
+        self.assembler = LapAssembler(twin.track.length_m, LapLimits().timeout_s)
         self.laps: list[dict] = []
         self.alignments: list[dict] = []
         self.streak = 0
         self._thread: threading.Thread | None = None
         self._result: dict | None = None
         self._prediction: tuple[float, object] | None = None
-        if state_path and os.path.isfile(state_path):
-            with open(state_path) as f:
-                state = json.load(f)
-            twin.update(state.get("values", {}))
-            self.alignments = state.get("alignments", [])
-            log.info("resumed state from %s: %s", state_path, state.get("values"))
+        self.rebuild_from_log = False  # a corrupt state was set aside: replay the log with re-alignment
+        if state_path and os.path.exists(state_path):
+            state = _read_state(state_path, options.address)
+            if state is None:
+                self.rebuild_from_log = True
+            else:
+                twin.update(state["values"])
+                self.alignments = state["alignments"]
+                log.info("resumed state from %s: %s", state_path, state["values"])
 
     def prediction(self):
         """The twin's lap under its current parameters (cached until they change)."""
@@ -116,7 +157,14 @@ class LiveTwin:
     def _lap(self, lap: RobotLap, replay: bool) -> None:
         twin_lap = self.prediction()
         entry = {"lap": lap.index, "robot_lap_time_s": lap.lap_time_s, "twin_lap_time_s": twin_lap.lap_time_s,
-                 self.o.address: self.twin.space.get(self.o.address), "replayed": replay}
+                 self.o.address: self.twin.space.get(self.o.address), "replayed": replay, "implausible": lap.implausible}
+        if lap.implausible:  # reported, never acted on
+            log.warning("lap %d ignored: %s", lap.index, lap.implausible)
+            entry["discrepancy"] = None
+            self.laps.append(entry)
+            if self.on_lap:
+                self.on_lap({**entry, "lap_record": lap, "twin_lap": twin_lap})
+            return
         if lap.lap_time_s is not None and twin_lap.completed:
             entry["discrepancy"] = (lap.lap_time_s - twin_lap.lap_time_s) / twin_lap.lap_time_s
             tr = twin_lap.trace
@@ -137,16 +185,13 @@ class LiveTwin:
 
     def _start_alignment(self, measured: float, why: dict) -> None:
         values = dict(self.twin.space.values)
-        settings = (self.twin.track_source, self.twin.robot_urdf, self.twin.robot_config, self.twin.track_metres_per_pixel)
+        other = self.twin.clone()  # built in the background thread, never shared with the live loop
         reason = (f"robot laps {measured:.3f} s (mean of {self.o.k_laps}) against the twin's "
                   f"{why['twin_lap_time_s']:.3f} s for {self.streak} laps")
         log.info("re-aligning %s: %s", self.o.address, reason)
 
         def work():
             try:
-                other = DigitalTwin(track=settings[0], robot_urdf=settings[1], robot_config=settings[2],
-                                    track_metres_per_pixel=settings[3])
-                other.space.values.update(values)
                 r = align_lap_time(other, measured, self.o.address, bounds=self.o.bounds, seed=self.o.seed)
                 self._result = {"explained": r.explained, "value": r.value, "message": r.message, "reason": reason,
                                 "measured_lap_time_s": measured, "before": values[self.o.address]}
@@ -165,7 +210,7 @@ class LiveTwin:
         r["time"] = time.time()
         if r["explained"] and r["value"] is not None:
             self.twin.set(self.o.address, r["value"])
-            log.warning("aligned %s: %.5g → %.5g (%s)", self.o.address, r["before"], r["value"], r["reason"])
+            log.info("aligned %s: %.5g → %.5g (%s)", self.o.address, r["before"], r["value"], r["reason"])
         else:
             log.warning("alignment did not explain the robot: %s", r["message"])
         self.alignments.append(r)
@@ -177,21 +222,26 @@ class LiveTwin:
         self._apply_alignment(wait=True)
 
     def save_state(self) -> None:
-        if not self.state_path:
-            return
-        tmp = f"{self.state_path}.{os.getpid()}.tmp"
-        with open(tmp, "w") as f:
-            json.dump({"values": {self.o.address: self.twin.space.get(self.o.address)}, "alignments": self.alignments}, f,
-                      indent=2)
-        os.replace(tmp, self.state_path)
+        if self.state_path:
+            write_json(self.state_path, {"values": {self.o.address: self.twin.space.get(self.o.address)},
+                                         "alignments": self.alignments}, "live state file")
 
 
-@dataclasses.dataclass
-class LinkStats:
-    lines: int = 0
-    corrupted: int = 0
-    reconnects: int = 0
-    robot_laps: int = 0
+def _read_state(path: str, address: str) -> dict | None:
+    """The state file's values and alignments, or None after setting a corrupt one aside (with a warning)."""
+    try:
+        state = json.loads(read_text(path, 16 * 2**20, "live state file"))
+        values, alignments = state["values"], state["alignments"]
+        if not (isinstance(values, dict) and isinstance(alignments, list)
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values.values())):
+            raise ValueError("wrong shape")
+        return {"values": values, "alignments": alignments}
+    except (LineFollowerError, ValueError, KeyError, TypeError, RecursionError) as e:
+        aside = f"{path}.corrupt-{time.strftime('%Y%m%dT%H%M%S')}"
+        os.replace(path, aside)
+        log.warning("%s is unreadable or of the wrong shape (%s); set aside as %s, rebuilding the state from the log",
+                    path, str(e).splitlines()[0] if str(e) else type(e).__name__, aside)
+        return None
 
 
 def replay_log(path: str, live: LiveTwin, stats: LinkStats, realign: bool = False) -> None:
@@ -209,56 +259,3 @@ def replay_log(path: str, live: LiveTwin, stats: LinkStats, realign: bool = Fals
                 stats.robot_laps += 1
                 live.finish()  # as fast as the file goes, each lap sees the alignment the previous ones asked for
             live.feed(rec, replay=not realign)
-
-
-def run_link(url: str, live: LiveTwin, log_path: str, stats: LinkStats, stop: Callable[[], bool],
-             backoff_max_s: float = 2.0, timeout_s: float = 0.2) -> None:
-    """Read the link until ``stop()`` says so, logging every line and reopening the link when it drops."""
-    import serial
-
-    backoff = 0.05
-    with open(log_path, "ab") as logf:
-        while not stop():
-            try:
-                port = serial.serial_for_url(url, baudrate=115200, timeout=timeout_s)
-            except (serial.SerialException, OSError, ValueError) as e:
-                log.info("link %s not available (%s); retrying in %.2f s", url, e, backoff)
-                time.sleep(backoff)
-                backoff = min(backoff_max_s, backoff * 2)
-                stats.reconnects += 1
-                continue
-            backoff = 0.05
-            try:
-                pending = b""
-                while not stop():
-                    chunk = port.readline()
-                    if not chunk:
-                        live.feed(None)  # lets a finished alignment apply while the link is quiet
-                        continue
-                    pending += chunk
-                    if not pending.endswith(b"\n"):
-                        if len(pending) > 4096:
-                            pending = b""
-                        continue
-                    line, pending = pending, b""
-                    logf.write(line)
-                    stats.lines += 1
-                    try:
-                        rec = decode(line)
-                    except WireError:
-                        stats.corrupted += 1
-                        continue
-                    if isinstance(rec, Event) and rec.event in ("LAP", "FAIL"):
-                        logf.flush()
-                        os.fsync(logf.fileno())  # a whole lap is on disk before it is acted on
-                        stats.robot_laps += 1
-                    live.feed(rec)
-            except (serial.SerialException, OSError) as e:
-                log.warning("link %s dropped (%s); reopening", url, e)
-                stats.reconnects += 1
-            finally:
-                logf.flush()
-                try:
-                    port.close()
-                except Exception:
-                    pass

@@ -5,12 +5,16 @@ serial device.
 
 Each lap is simulated ahead of time (from the start line, as the robot crosses it) and then streamed with its
 own sample times, offset by the laps before it; lap k uses noise seed ``seed + k``.
+
+It never outlives its purpose: with nobody reading (no TCP client connected, or a pty whose buffer stays full)
+for ``idle_timeout_s`` it stops (:class:`NoReader`).
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import select
 import socket
 import time
 import tty
@@ -18,6 +22,7 @@ from typing import Callable, Iterator
 
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
+from twin.errors import TwinError
 from twin.lap import COL
 from twin.wire import Event, Header, Sample, encode
 
@@ -63,8 +68,25 @@ def stream(lines: Iterator[tuple[float, str]], write: Callable[[bytes], None], s
             echo(line)
 
 
+class NoReader(Exception):
+    """Nobody read the stream for the idle time: the emulator's job is over."""
+
+
+def check_link_path(link: str) -> None:
+    """``--link`` may be created, or replace a symlink of ours (one pointing at a pty); nothing else is replaced."""
+    if os.path.islink(link):
+        if not os.readlink(link).startswith("/dev/pts/"):
+            raise TwinError(f"{link}: is a symbolic link to {os.readlink(link)}, not one this emulator made; choose another --link")
+    elif os.path.exists(link):
+        raise TwinError(f"{link}: exists and is not a link this emulator made; choose another --link")
+    elif not os.path.isdir(os.path.dirname(os.path.abspath(link))):
+        raise TwinError(f"{link}: folder {os.path.dirname(os.path.abspath(link))} does not exist")
+
+
 def open_pty(link: str | None = None) -> tuple[int, int, str]:
     """A pseudo-terminal pair in raw mode: (master fd, slave fd, slave path); optionally a stable symlink."""
+    if link:
+        check_link_path(link)
     master, slave = os.openpty()
     tty.setraw(slave)  # no echo, no newline translation: bytes pass as sent
     path = os.ttyname(slave)
@@ -76,9 +98,37 @@ def open_pty(link: str | None = None) -> tuple[int, int, str]:
     return master, slave, path
 
 
+def pty_writer(master: int, idle_timeout_s: float) -> Callable[[bytes], None]:
+    """Write to a pty master; a buffer that stays full for ``idle_timeout_s`` (nobody reads) raises NoReader."""
+
+    def write(data: bytes) -> None:
+        while data:
+            _, ready, _ = select.select([], [master], [], idle_timeout_s)
+            if not ready:
+                raise NoReader(f"nobody read the pty for {idle_timeout_s:g} s")
+            data = data[os.write(master, data):]
+
+    return write
+
+
 def serve_tcp(port: int) -> socket.socket:
     server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    server.bind(("127.0.0.1", port))
+    try:
+        server.bind(("127.0.0.1", port))
+    except OSError as e:
+        server.close()
+        raise TwinError(f"--tcp {port}: cannot listen on 127.0.0.1:{port} ({e.strerror or e})") from None
     server.listen(1)
     return server
+
+
+def accept(server: socket.socket, idle_timeout_s: float) -> socket.socket:
+    """The next client, waiting at most ``idle_timeout_s``; NoReader otherwise."""
+    server.settimeout(idle_timeout_s)
+    try:
+        conn, _ = server.accept()
+    except socket.timeout:
+        raise NoReader(f"no client connected for {idle_timeout_s:g} s") from None
+    conn.settimeout(idle_timeout_s)  # a client that stops reading is gone
+    return conn

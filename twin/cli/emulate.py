@@ -8,7 +8,8 @@ import os
 
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.emulator import lap_records, open_pty, serve_tcp, stream
+from twin.emulator import NoReader, accept, check_link_path, lap_records, open_pty, pty_writer, serve_tcp, stream
+from twin.errors import TwinError
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
 
@@ -28,16 +29,33 @@ def add_parser(sub) -> None:
                    help="serve on 127.0.0.1:PORT instead of a pty (0: any free port)")
     p.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty, stable across restarts")
     p.add_argument("--echo", metavar="FILE", help="append every line sent to FILE")
+    p.add_argument("--idle-timeout", type=o.number(0.1, 86400.0), default=60.0, metavar="WALL_S",
+                   help="stop when nobody has read the stream for this long (no TCP client, a pty nobody reads)")
     o.add_json(p)
     o.add_verbose(p)
     p.set_defaults(run=run)
 
 
+def _echo_file(path: str | None):
+    if not path:
+        return None
+    if os.path.isdir(path):
+        raise TwinError(f"{path}: is a folder; name a file for --echo")
+    if not os.path.isdir(os.path.dirname(os.path.abspath(path))):
+        raise TwinError(f"{path}: folder {os.path.dirname(os.path.abspath(path))} does not exist")
+    try:
+        return open(path, "a", buffering=1)  # appended: never replaces what is there
+    except OSError as e:
+        raise TwinError(f"{path}: cannot append to it ({e.strerror or e})") from None
+
+
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
+    if args.link:
+        check_link_path(args.link)
+    echo_file = _echo_file(args.echo)
     twin = o.twin_from_args(args)
     twin.model()
-    echo_file = open(args.echo, "a", buffering=1) if args.echo else None
     echo = echo_file.write if echo_file else None
     lines = lap_records(twin, args.seed, args.every, args.laps)
     try:
@@ -47,18 +65,21 @@ def run(args: argparse.Namespace) -> int:
             out.document({"link": url})
             out.say(f"robot emulator on {url}")
             while True:
-                conn, _ = server.accept()
+                conn = accept(server, args.idle_timeout)
                 try:
                     stream(lines, conn.sendall, args.speed, echo)
                     return 0
                 except OSError:
-                    continue  # the reader went away: wait for the next one, carry on with the laps
+                    continue  # the reader went away: wait (a while) for the next one, carry on with the laps
                 finally:
                     conn.close()
         master, slave, path = open_pty(args.link)
         out.document({"link": path})
         out.say(f"robot emulator on {path}")
-        stream(lines, lambda b: os.write(master, b), args.speed, echo)
+        stream(lines, pty_writer(master, args.idle_timeout), args.speed, echo)
+        return 0
+    except NoReader as e:
+        out.say(f"robot emulator stops: {e}")
         return 0
     finally:
         if echo_file:

@@ -6,12 +6,15 @@ from __future__ import annotations
 import argparse
 import os
 import signal
+import sys
 import time
 
 from twin.cli import options as o
 from twin.cli.output import Output
 from twin.errors import TwinError
-from tuner.live import LinkStats, LiveOptions, LiveTwin, replay_log, run_link
+from tuner.live import LiveOptions, LiveTwin, replay_log
+from twin.link import FSYNC_INTERVAL_S, RETRY_S, DurableLog, LinkGaveUp, LinkStats, read_link
+from twin.wire import Event, WireError, decode
 from tuner.recording import LiveRecording
 
 HELP = "run the twin beside the robot: compare laps, re-align when they disagree"
@@ -20,8 +23,10 @@ HELP = "run the twin beside the robot: compare laps, re-align when they disagree
 def add_parser(sub) -> None:
     p = sub.add_parser("live", help=HELP, description=(
         "Reads wire telemetry from --port (a device path, socket://host:port, loop://, or a pty path), appends every "
-        "line to --log, compares each lap with the twin, and re-aligns --param in the background when the lap time "
-        "differs by more than --threshold for --k-laps laps. A restart resumes from the log and its state file."))
+        f"byte received to --log (fsynced every {FSYNC_INTERVAL_S:g} s and at each lap; the log is locked against a "
+        "second reader), compares each plausible lap with the twin, and re-aligns --param in the background when the "
+        "lap time differs by more than --threshold for --k-laps laps. A restart resumes from the log and its state "
+        "file. Exit status 1 when the link could not be opened."))
     p.add_argument("--port", metavar="PATH_OR_URL", help="serial device, pty path or pyserial URL")
     p.add_argument("--replay", metavar="LOG", help="instead of a link: a recorded telemetry log, as fast as it reads")
     o.add_world(p)
@@ -35,6 +40,9 @@ def add_parser(sub) -> None:
     p.add_argument("--state", metavar="FILE", help="state file (default: <log>.state.json)")
     p.add_argument("--laps", type=o.count_type, metavar="N", help="stop after this many robot laps")
     p.add_argument("--duration", type=o.number(0.0, 10**7, lo_open=True), metavar="WALL_S", help="stop after this many wall-clock seconds")
+    p.add_argument("--retry", type=o.number(0.0, 10**6), default=RETRY_S, metavar="WALL_S",
+                   help="how long to keep reopening a link that is down before giving up (exit 1)")
+    p.add_argument("--retry-forever", action="store_true", help="keep reopening a link that is down, never give up")
     o.add_json(p)
     o.add_recording(p, "the comparison, lap by lap")
     o.add_verbose(p)
@@ -76,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         rec.close()
     summary["recording"] = rec.saved if rec is not None else None
     out.document(summary)
-    return 0
+    return 1 if summary.get("gave_up") else 0
 
 
 def _replay(args, twin, options: LiveOptions, on_lap, out: Output) -> dict:
@@ -94,26 +102,54 @@ def _link(args, twin, options: LiveOptions, state: str, on_lap, out: Output) -> 
     if not args.port:
         raise TwinError("live: give --port PATH_OR_URL (or --replay FILE)")
     stats = LinkStats()
-    live = LiveTwin(twin, options, state, on_lap)
-    if os.path.isfile(args.log):
-        replay_log(args.log, live, stats)
-        out.say(f"resumed {len(live.laps)} laps from {args.log}")
-    start_laps, t0 = len(live.laps), time.monotonic()
-    stopping = [False]
-    signal.signal(signal.SIGINT, lambda *a: stopping.__setitem__(0, True))
-    signal.signal(signal.SIGTERM, lambda *a: stopping.__setitem__(0, True))
+    log_file = DurableLog(args.log)  # locked, a cut-off last line ended: before anything reads it
+    try:
+        live = LiveTwin(twin, options, state, on_lap)
+        if os.path.getsize(args.log) > 0:
+            replay_log(args.log, live, LinkStats(), realign=live.rebuild_from_log)
+            live.finish()
+            if live.rebuild_from_log:
+                live.save_state()
+            out.say(f"resumed {len(live.laps)} laps from {args.log}")
+        start_laps, t0 = len(live.laps), time.monotonic()
+        stopping = [False]
+        signal.signal(signal.SIGINT, lambda *a: stopping.__setitem__(0, True))
+        signal.signal(signal.SIGTERM, lambda *a: stopping.__setitem__(0, True))
 
-    def stop() -> bool:
-        done_laps = args.laps is not None and len(live.laps) - start_laps >= args.laps
-        timed_out = args.duration is not None and time.monotonic() - t0 > args.duration
-        return stopping[0] or done_laps or timed_out
+        def stop() -> bool:
+            done_laps = args.laps is not None and len(live.laps) - start_laps >= args.laps
+            timed_out = args.duration is not None and time.monotonic() - t0 > args.duration
+            return stopping[0] or done_laps or timed_out
 
-    run_link(args.port, live, args.log, stats, stop)
-    live.finish()
+        def on_line(raw: bytes) -> bool:
+            try:
+                rec = decode(raw)
+            except WireError:
+                stats.corrupted += 1
+                return False
+            lap_event = isinstance(rec, Event) and rec.event in ("LAP", "FAIL")
+            stats.robot_laps += lap_event
+            live.feed(rec)
+            return lap_event
+
+        gave_up = None
+        try:
+            read_link(args.port, log_file, on_line, lambda: live.feed(None), stats, stop,
+                      None if args.retry_forever else args.retry)
+        except LinkGaveUp as e:
+            gave_up = str(e)
+        live.finish()
+    finally:
+        log_file.close()
     value = twin.space.get(options.address)
-    summary = {"laps": len(live.laps) - start_laps, "resumed_laps": start_laps, "lines": stats.lines,
-               "corrupted": stats.corrupted, "reconnects": stats.reconnects, "value": {options.address: value},
-               "alignments": live.alignments, "log": os.path.abspath(args.log), "state": os.path.abspath(state)}
-    out.say(f"{summary['laps']} laps, {stats.lines} lines ({stats.corrupted} corrupted), {stats.reconnects} reconnects; "
-            f"{options.address} = {value:.5g}; log {summary['log']}")
+    new = live.laps[start_laps:]
+    summary = {"laps": len(new), "resumed_laps": start_laps, "lines": stats.lines, "corrupted": stats.corrupted,
+               "reconnects": stats.reconnects, "implausible_laps": sum(1 for e in new if e.get("implausible")),
+               "value": {options.address: value}, "alignments": live.alignments, "log": os.path.abspath(args.log),
+               "state": os.path.abspath(state), "gave_up": gave_up}
+    out.say(f"{summary['laps']} laps ({summary['implausible_laps']} implausible), {stats.lines} lines "
+            f"({stats.corrupted} corrupted), {stats.reconnects} reconnects; {options.address} = {value:.5g}; "
+            f"log {summary['log']}")
+    if gave_up:
+        print(f"gave up: {gave_up}", file=sys.stderr)
     return summary
