@@ -1,23 +1,26 @@
 """The twin beside the robot (paper §3.8, §4.2): compare each lap of its telemetry with the twin's prediction, and
 re-align the twin when they keep disagreeing. Reading the link, logging and locking are :mod:`twin.link`'s.
 
-* Each lap is judged before it counts (:class:`LapAssembler`): sample times must increase, positions lie within
-  the header's sensor range, the LAP's lap time agree with its START→LAP span (within ``SPAN_TOLERANCE_S`` +
-  ``SPAN_TOLERANCE_REL``), and the lap time be one a robot can drive (at most ``MAX_SPEED_MPS`` on average, at
-  most the twin's lap timeout). An implausible lap is reported and counted, never used for re-alignment.
+* Each lap is judged before it counts (:class:`LapAssembler`): sample times must increase and the LAP come no
+  earlier than its last sample (less ``SPAN_TOLERANCE_S``), positions lie within the header's sensor range
+  (0 … (sensors − 1)·1000), the LAP's lap time agree with its START→LAP span (within ``SPAN_TOLERANCE_S`` +
+  ``SPAN_TOLERANCE_REL`` of it: 0.05 s + 1 %, for firmware clocks and millisecond rounding), and the lap time be
+  one a robot can drive on this track (no faster than ``MAX_SPEED_MPS`` = 5 m/s on average, no longer than the
+  twin's lap timeout, 60 s). An implausible lap is reported (log warning, ``--json``) and counted, never used
+  for re-alignment.
 * A completed lap is compared with the twin's lap under its current parameters: lap time and line position.
   When the lap time differs by more than ``threshold`` for ``k_laps`` laps in a row, the aligner
   (:func:`tuner.align.align_lap_time`, every range that explains it) runs in a background thread on its own
   copy of the twin, on the mean of those laps; its result is applied, logged with the reason, and saved.
 * The state file (``"generator"`` JSON, written atomically) holds the aligned value and the alignments. A restart
-  replays the log and reloads the state; a state file that is unreadable or of the wrong shape is set aside
-  (renamed, never deleted) with a warning and rebuilt by replaying the log with re-alignment.
+  replays the log (:func:`resume`) and reloads the state; a state file that is unreadable, of the wrong shape, or
+  not written by this program is set aside (renamed ``<state>.corrupt-<time>``, never deleted) with a warning and
+  rebuilt by replaying the log with re-alignment.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import math
 import os
@@ -28,13 +31,14 @@ from typing import Callable
 import numpy as np
 
 from lf_common.errors import LineFollowerError
-from lf_common.files import read_text, write_json
+from lf_common.files import GENERATOR, check_output_file, parse_json, read_text, write_json
 from tuner.align import align_lap_time
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
 from twin.lap import LapLimits
+from twin.errors import TwinError
 from twin.link import LinkStats
-from twin.wire import Event, Header, Sample, WireError, decode
+from twin.wire import Event, Header, LineSplitter, Sample, WireError, decode
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +100,8 @@ class LapAssembler:
 
     def _judge_lap(self, rec: Event) -> str | None:
         span = rec.t - self.start
+        if self.rows and span < self.rows[-1][0] - SPAN_TOLERANCE_S:  # (a sample may carry the crossing tick)
+            return f"LAP at {rec.t:g} s comes before its last sample at {self.rows[-1][0] + self.start:g} s"
         if abs(rec.lap_time_s - span) > SPAN_TOLERANCE_S + SPAN_TOLERANCE_REL * span:
             return f"lap time {rec.lap_time_s:g} s disagrees with its START→LAP span of {span:g} s"
         fastest = self.track_length_m / MAX_SPEED_MPS
@@ -130,10 +136,11 @@ class LiveTwin:
         self._result: dict | None = None
         self._prediction: tuple[float, object] | None = None
         self.rebuild_from_log = False  # a corrupt state was set aside: replay the log with re-alignment
-        if state_path and os.path.exists(state_path):
-            state = _read_state(state_path, options.address)
+        if state_path:
+            existed = os.path.lexists(state_path)
+            state = _read_state(state_path, twin)
             if state is None:
-                self.rebuild_from_log = True
+                self.rebuild_from_log = existed
             else:
                 twin.update(state["values"])
                 self.alignments = state["alignments"]
@@ -158,8 +165,8 @@ class LiveTwin:
         twin_lap = self.prediction()
         entry = {"lap": lap.index, "robot_lap_time_s": lap.lap_time_s, "twin_lap_time_s": twin_lap.lap_time_s,
                  self.o.address: self.twin.space.get(self.o.address), "replayed": replay, "implausible": lap.implausible}
-        if lap.implausible:  # reported, never acted on
-            log.warning("lap %d ignored: %s", lap.index, lap.implausible)
+        if lap.implausible:  # reported, never acted on (a replayed one was reported when it arrived)
+            log.log(logging.INFO if replay else logging.WARNING, "lap %d ignored: %s", lap.index, lap.implausible)
             entry["discrepancy"] = None
             self.laps.append(entry)
             if self.on_lap:
@@ -227,35 +234,93 @@ class LiveTwin:
                                          "alignments": self.alignments}, "live state file")
 
 
-def _read_state(path: str, address: str) -> dict | None:
-    """The state file's values and alignments, or None after setting a corrupt one aside (with a warning)."""
-    try:
-        state = json.loads(read_text(path, 16 * 2**20, "live state file"))
-        values, alignments = state["values"], state["alignments"]
-        if not (isinstance(values, dict) and isinstance(alignments, list)
-                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values.values())):
-            raise ValueError("wrong shape")
-        return {"values": values, "alignments": alignments}
-    except (LineFollowerError, ValueError, KeyError, TypeError, RecursionError) as e:
-        aside = f"{path}.corrupt-{time.strftime('%Y%m%dT%H%M%S')}"
-        os.replace(path, aside)
-        log.warning("%s is unreadable or of the wrong shape (%s); set aside as %s, rebuilding the state from the log",
-                    path, str(e).splitlines()[0] if str(e) else type(e).__name__, aside)
+STATE = "live state file"
+STATE_LIMIT = 16 * 2**20  # [bytes]; a state of a thousand alignments is under 1 MB
+
+
+class _Corrupt(Exception):
+    """The state file cannot be what this program wrote."""
+
+
+def _read_state(path: str, twin: DigitalTwin) -> dict | None:
+    """The state file's values and alignments; None if there is none, or after setting a corrupt one aside
+    (renamed, never deleted) with a warning. A folder, link or device there, or a folder that cannot be
+    written, is refused at once (:class:`OutputError`): it would fail at the first save."""
+    check_output_file(path, lambda _: True, STATE)
+    if not os.path.exists(path):
         return None
+    try:
+        return _parse_state(path, twin)
+    except _Corrupt as e:
+        aside = _set_aside(path)
+        log.warning("%s: %s; set aside as %s, rebuilding the state from the log", path, e, aside)
+        return None
+
+
+def _parse_state(path: str, twin: DigitalTwin) -> dict:
+    try:
+        state = parse_json(read_text(path, STATE_LIMIT, STATE), path)
+    except LineFollowerError as e:
+        raise _Corrupt(str(e).removeprefix(f"{path}: ")) from None
+    if not isinstance(state, dict) or state.get("generator") != GENERATOR:
+        raise _Corrupt(f"not a state file written by {GENERATOR}")
+    values, alignments = state.get("values"), state.get("alignments")
+    if not (isinstance(values, dict) and isinstance(alignments, list) and all(isinstance(a, dict) for a in alignments)
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values.values())):
+        raise _Corrupt('wrong shape (expected "values": {address: number}, "alignments": [{…}])')
+    try:
+        twin.checked_values(values)  # known addresses, finite, within range
+    except TwinError as e:
+        raise _Corrupt(str(e)) from None
+    return {"values": values, "alignments": alignments}
+
+
+def _set_aside(path: str) -> str:
+    stem = f"{path}.corrupt-{time.strftime('%Y%m%dT%H%M%S')}"
+    aside, n = stem, 1
+    while os.path.lexists(aside):  # never over an earlier one
+        aside, n = f"{stem}.{n}", n + 1
+    os.rename(path, aside)
+    return aside
 
 
 def replay_log(path: str, live: LiveTwin, stats: LinkStats, realign: bool = False) -> None:
     """Feed a telemetry log (wire lines) through live mode: without re-aligning to resume after a restart,
-    or with it to replay a recorded session as if it were live."""
+    or with it to replay a recorded session as if it were live. Read in chunks: a line of any length costs
+    no more memory than a chunk."""
+    lines = LineSplitter()
     with open(path, "rb") as f:
-        for raw in f:
-            stats.lines += realign
-            try:
-                rec = decode(raw)
-            except WireError:
-                stats.corrupted += 1
-                continue
-            if realign and isinstance(rec, Event) and rec.event in ("LAP", "FAIL"):
-                stats.robot_laps += 1
-                live.finish()  # as fast as the file goes, each lap sees the alignment the previous ones asked for
-            live.feed(rec, replay=not realign)
+        while chunk := f.read(1 << 16):
+            for raw in lines.feed(chunk):
+                _replay_line(raw, live, stats, realign)
+    if lines.cut():
+        _replay_line(None, live, stats, realign)
+
+
+def _replay_line(raw: bytes | None, live: LiveTwin, stats: LinkStats, realign: bool) -> None:
+    stats.lines += 1
+    try:
+        if raw is None:
+            raise WireError("line too long or cut off")
+        rec = decode(raw)
+    except WireError:
+        stats.corrupted += 1
+        return
+    if isinstance(rec, Event) and rec.event in ("LAP", "FAIL"):
+        stats.robot_laps += 1
+        if realign:
+            live.finish()  # as fast as the file goes, each lap sees the alignment the previous ones asked for
+    live.feed(rec, replay=not realign)
+
+
+def resume(live: LiveTwin, log_path: str) -> int:
+    """Replay the laps already in the log (after a restart); with a state that was set aside, re-align on them
+    to rebuild it. Returns how many laps the log held."""
+    if not os.path.exists(log_path) or os.path.getsize(log_path) == 0:
+        return 0
+    replay_log(log_path, live, LinkStats(), realign=live.rebuild_from_log)
+    live.finish()
+    if live.rebuild_from_log:
+        live.save_state()
+        live.rebuild_from_log = False
+    return len(live.laps)

@@ -7,15 +7,19 @@ Each lap is simulated ahead of time (from the start line, as the robot crosses i
 own sample times, offset by the laps before it; lap k uses noise seed ``seed + k``.
 
 It never outlives its purpose: with nobody reading (no TCP client connected, or a pty whose buffer stays full)
-for ``idle_timeout_s`` it stops (:class:`NoReader`).
+for ``idle_timeout_s`` it stops (:class:`NoReader`). A TCP client that leaves is waited for again, for that long,
+so a reader that restarts carries on with the same robot.
 """
 
 from __future__ import annotations
 
+import fcntl
 import logging
 import os
 import select
 import socket
+import struct
+import termios
 import time
 import tty
 from typing import Callable, Iterator
@@ -84,7 +88,8 @@ def check_link_path(link: str) -> None:
 
 
 def open_pty(link: str | None = None) -> tuple[int, int, str]:
-    """A pseudo-terminal pair in raw mode: (master fd, slave fd, slave path); optionally a stable symlink."""
+    """A pseudo-terminal pair in raw mode: (master fd, slave fd, slave path); optionally a stable symlink to the
+    slave at ``link`` (see :func:`check_link_path`; :func:`release_link` removes it)."""
     if link:
         check_link_path(link)
     master, slave = os.openpty()
@@ -94,8 +99,17 @@ def open_pty(link: str | None = None) -> tuple[int, int, str]:
         tmp = f"{link}.{os.getpid()}.tmp"
         os.symlink(path, tmp)
         os.replace(tmp, link)
-        path = link
     return master, slave, path
+
+
+def release_link(link: str, tty_path: str) -> None:
+    """Remove ``link`` if it still points at our pty: the kernel soon gives that pty's number to another
+    program (a terminal), which a reader following a stale link would open."""
+    try:
+        if os.readlink(link) == tty_path:
+            os.unlink(link)
+    except OSError:
+        pass  # gone, or replaced by another emulator: not ours any more
 
 
 def pty_writer(master: int, idle_timeout_s: float) -> Callable[[bytes], None]:
@@ -109,6 +123,33 @@ def pty_writer(master: int, idle_timeout_s: float) -> Callable[[bytes], None]:
             data = data[os.write(master, data):]
 
     return write
+
+
+DRAINED_S = 0.25  # [s] the pty must stay empty this long: a byte just written sits in the kernel's flip buffer,
+                  # uncounted, until a worker moves it to the reader's queue
+
+
+def drain_pty(slave: int, idle_timeout_s: float) -> None:
+    """Wait until the reader has taken everything written (closing the master discards what is left unread):
+    until the pty has stayed empty for ``DRAINED_S``; NoReader if the reader takes nothing for ``idle_timeout_s``."""
+    waiting, progress, empty_since = _unread(slave), time.monotonic(), time.monotonic()
+    while True:
+        time.sleep(0.02)
+        now, left = time.monotonic(), _unread(slave)
+        if left == 0 and now - empty_since >= DRAINED_S:
+            return
+        if left:
+            empty_since = now
+        if left < waiting:
+            progress = now
+        elif left and now - progress > idle_timeout_s:
+            raise NoReader(f"nobody read the last {left} bytes on the pty for {idle_timeout_s:g} s")
+        waiting = left
+
+
+def _unread(slave: int) -> int:
+    """Bytes written to the pty that its reader has not read yet."""
+    return struct.unpack("i", fcntl.ioctl(slave, termios.FIONREAD, b"\0\0\0\0"))[0]
 
 
 def serve_tcp(port: int) -> socket.socket:

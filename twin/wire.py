@@ -11,7 +11,8 @@ checksum being the XOR of the bytes between ``$`` and ``*`` as two hex digits. I
 
 A sample every ``every`` control ticks (default 2: 100 lines/s at Δt = 5 ms, ≈ 3.5 kB/s, within a 115200-baud
 Bluetooth SPP link). A line whose checksum or fields are wrong raises :class:`WireError`; readers count and
-skip those.
+skip those. :class:`LineSplitter` cuts a byte stream into lines with a bounded memory: a line longer than
+``MAX_LINE`` is junk however long it goes on, and is skipped up to its newline without being kept.
 """
 
 from __future__ import annotations
@@ -50,6 +51,43 @@ class Event:
     event: str  # START, LAP, FAIL
     lap_time_s: float | None = None
     reason: str | None = None
+
+
+class LineSplitter:
+    """Bytes as they arrive → complete lines (each with its newline). A line that grows past ``MAX_LINE`` bytes
+    is not kept: it is reported once, as ``None``, when it ends (at its newline, or at :meth:`cut`), so a
+    10 MB line without a newline costs no memory and counts as one corrupted line."""
+
+    def __init__(self, max_bytes: int = MAX_LINE):
+        self.max_bytes = max_bytes
+        self.pending = bytearray()
+        self.overlong = False  # the current line passed max_bytes: skipping to its newline
+
+    def feed(self, data: bytes) -> list[bytes | None]:
+        out: list[bytes | None] = []
+        start = 0
+        while (end := data.find(b"\n", start)) >= 0:
+            if self.overlong:
+                out.append(None)
+            else:
+                self.pending += data[start:end + 1]
+                out.append(bytes(self.pending))
+            self.pending.clear()
+            self.overlong = False
+            start = end + 1
+        if not self.overlong:
+            self.pending += data[start:]
+            if len(self.pending) > self.max_bytes:
+                self.pending.clear()
+                self.overlong = True
+        return out
+
+    def cut(self) -> bool:
+        """The stream ended (a drop, a stop, end of file): True if it ended inside a line, which is then dropped."""
+        partial = bool(self.pending) or self.overlong
+        self.pending.clear()
+        self.overlong = False
+        return partial
 
 
 def checksum(body: str) -> str:

@@ -8,7 +8,8 @@ import os
 
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.emulator import NoReader, accept, check_link_path, lap_records, open_pty, pty_writer, serve_tcp, stream
+from twin.emulator import (NoReader, accept, check_link_path, drain_pty, lap_records, open_pty, pty_writer, release_link,
+                           serve_tcp, stream)
 from twin.errors import TwinError
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
@@ -54,33 +55,50 @@ def run(args: argparse.Namespace) -> int:
     if args.link:
         check_link_path(args.link)
     echo_file = _echo_file(args.echo)
-    twin = o.twin_from_args(args)
-    twin.model()
-    echo = echo_file.write if echo_file else None
-    lines = lap_records(twin, args.seed, args.every, args.laps)
     try:
+        twin = o.twin_from_args(args)
+        twin.model()
+        lines = lap_records(twin, args.seed, args.every, args.laps)
+        echo = echo_file.write if echo_file else None
         if args.tcp is not None:
-            server = serve_tcp(args.tcp)
-            url = f"socket://127.0.0.1:{server.getsockname()[1]}"
-            out.document({"link": url})
-            out.say(f"robot emulator on {url}")
-            while True:
-                conn = accept(server, args.idle_timeout)
-                try:
-                    stream(lines, conn.sendall, args.speed, echo)
-                    return 0
-                except OSError:
-                    continue  # the reader went away: wait (a while) for the next one, carry on with the laps
-                finally:
-                    conn.close()
-        master, slave, path = open_pty(args.link)
-        out.document({"link": path})
-        out.say(f"robot emulator on {path}")
-        stream(lines, pty_writer(master, args.idle_timeout), args.speed, echo)
-        return 0
+            _serve_tcp(args, lines, echo, out)
+        else:
+            _serve_pty(args, lines, echo, out)
     except NoReader as e:
         out.say(f"robot emulator stops: {e}")
-        return 0
     finally:
         if echo_file:
             echo_file.close()
+    return 0
+
+
+def _serve_tcp(args, lines, echo, out: Output) -> None:
+    server = serve_tcp(args.tcp)
+    with server:
+        url = f"socket://127.0.0.1:{server.getsockname()[1]}"
+        out.document({"link": url})
+        out.say(f"robot emulator on {url}")
+        while True:
+            conn = accept(server, args.idle_timeout)
+            try:
+                stream(lines, conn.sendall, args.speed, echo)
+                return
+            except OSError:
+                continue  # the reader went away: wait (at most --idle-timeout) for the next one, carry on with the laps
+            finally:
+                conn.close()
+
+
+def _serve_pty(args, lines, echo, out: Output) -> None:
+    master, slave, tty_path = open_pty(args.link)
+    try:
+        path = args.link or tty_path
+        out.document({"link": path})
+        out.say(f"robot emulator on {path}")
+        stream(lines, pty_writer(master, args.idle_timeout), args.speed, echo)
+        drain_pty(slave, args.idle_timeout)  # the last lap reaches the reader before the pty goes
+    finally:
+        if args.link:
+            release_link(args.link, tty_path)
+        os.close(master)
+        os.close(slave)

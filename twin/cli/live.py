@@ -4,16 +4,17 @@ background when laps keep disagreeing."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
-import sys
 import time
 
 from twin.cli import options as o
+from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
 from twin.errors import TwinError
-from tuner.live import LiveOptions, LiveTwin, replay_log
-from twin.link import FSYNC_INTERVAL_S, RETRY_S, DurableLog, LinkGaveUp, LinkStats, read_link
+from tuner.live import LiveOptions, LiveTwin, replay_log, resume
+from twin.link import FSYNC_INTERVAL_S, RETRY_S, DurableLog, LinkGaveUp, LinkStats, check_port, read_link
 from twin.wire import Event, WireError, decode
 from tuner.recording import LiveRecording
 
@@ -23,10 +24,11 @@ HELP = "run the twin beside the robot: compare laps, re-align when they disagree
 def add_parser(sub) -> None:
     p = sub.add_parser("live", help=HELP, description=(
         "Reads wire telemetry from --port (a device path, socket://host:port, loop://, or a pty path), appends every "
-        f"byte received to --log (fsynced every {FSYNC_INTERVAL_S:g} s and at each lap; the log is locked against a "
-        "second reader), compares each plausible lap with the twin, and re-aligns --param in the background when the "
-        "lap time differs by more than --threshold for --k-laps laps. A restart resumes from the log and its state "
-        "file. Exit status 1 when the link could not be opened."))
+        f"byte received to --log as it arrives (fsynced every {FSYNC_INTERVAL_S:g} s and after each lap; the log is "
+        "locked against a second reader), compares each plausible lap with the twin, and re-aligns --param in the "
+        "background when the lap time differs by more than --threshold for --k-laps laps. A restart resumes from the "
+        "log and its state file. Exit status 1 when the link stayed down for --retry seconds; Ctrl-C or SIGTERM stop "
+        "cleanly (log synced, state saved, summary printed) with 130 or 143."))
     p.add_argument("--port", metavar="PATH_OR_URL", help="serial device, pty path or pyserial URL")
     p.add_argument("--replay", metavar="LOG", help="instead of a link: a recorded telemetry log, as fast as it reads")
     o.add_world(p)
@@ -36,7 +38,7 @@ def add_parser(sub) -> None:
     p.add_argument("--threshold", type=o.number(0.0, 1.0, lo_open=True), default=0.005, metavar="FRACTION",
                    help="relative lap-time difference that counts as disagreeing")
     p.add_argument("--k-laps", type=o.count_type, default=2, metavar="N", help="laps in a row above the threshold before re-aligning")
-    p.add_argument("--log", default="live_telemetry.log", metavar="FILE", help="telemetry log: every received line, appended")
+    p.add_argument("--log", default="live_telemetry.log", metavar="FILE", help="telemetry log: every byte received, appended")
     p.add_argument("--state", metavar="FILE", help="state file (default: <log>.state.json)")
     p.add_argument("--laps", type=o.count_type, metavar="N", help="stop after this many robot laps")
     p.add_argument("--duration", type=o.number(0.0, 10**7, lo_open=True), metavar="WALL_S", help="stop after this many wall-clock seconds")
@@ -51,8 +53,14 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
+    if args.replay and args.port:
+        raise TwinError("live: give --port PATH_OR_URL or --replay LOG, not both")
     if args.replay and not os.path.isfile(args.replay):
         raise TwinError(f"{args.replay}: no such telemetry log")
+    if not args.replay:
+        if not args.port:
+            raise TwinError("live: give --port PATH_OR_URL (or --replay LOG)")
+        check_port(args.port)  # a malformed URL is refused before the twin is built
     twin = o.twin_from_args(args)
     twin.model()
     parameters = args.param or ["motion.mu"]
@@ -62,20 +70,13 @@ def run(args: argparse.Namespace) -> int:
     parameter = twin.space.parameter(address)
     bounds = o.parse_bounds(args.bounds, parameters).get(address, LiveOptions.bounds if address == "motion.mu" else None)
     options = LiveOptions(address, bounds, args.threshold, args.k_laps, args.seed)
-    state = args.state or f"{args.log}.state.json"
     rec = LiveRecording(args.save, args.view, address, parameter.unit) if (args.save or args.view) else None
-
-    def on_lap(e):
-        if not e["replayed"]:
-            d = "–" if e["discrepancy"] is None else f"{e['discrepancy'] * 100:+.2f} %"
-            robot = f"{e['robot_lap_time_s']:.3f} s" if e["robot_lap_time_s"] else "failed"
-            out.say(f"lap {e['lap']}: robot {robot}, twin {e['twin_lap_time_s']:.3f} s ({d}), "
-                    f"{address} = {e[address]:.5g}")
-        if rec is not None:
-            rec.lap(e)
-
+    on_lap = _lap_printer(out, address, rec)
     try:
-        summary = _replay(args, twin, options, on_lap, out) if args.replay else _link(args, twin, options, state, on_lap, out)
+        if args.replay:
+            summary, code = _replay(args, twin, options, on_lap, out), 0
+        else:
+            summary, code = _link(args, twin, options, on_lap, out)
     except BaseException as e:
         if rec is not None:
             rec.close(e)
@@ -84,7 +85,29 @@ def run(args: argparse.Namespace) -> int:
         rec.close()
     summary["recording"] = rec.saved if rec is not None else None
     out.document(summary)
-    return 1 if summary.get("gave_up") else 0
+    return code
+
+
+def _lap_printer(out: Output, address: str, rec):
+    """One human line per lap received (not per lap replayed from the log), and the recording."""
+
+    def seconds(v) -> str:
+        return "failed" if v is None else f"{v:.3f} s"
+
+    def on_lap(e: dict) -> None:
+        if not e["replayed"]:
+            d = "–" if e["discrepancy"] is None else f"{e['discrepancy'] * 100:+.2f} %"
+            why = f"; implausible, ignored: {e['implausible']}" if e["implausible"] else ""
+            out.say(f"lap {e['lap']}: robot {seconds(e['robot_lap_time_s'])}, twin {seconds(e['twin_lap_time_s'])} "
+                    f"({d}), {address} = {e[address]:.5g}{why}")
+        if rec is not None:
+            rec.lap(e)
+
+    return on_lap
+
+
+def _implausible(laps: list[dict]) -> list[dict]:
+    return [{"lap": e["lap"], "why": e["implausible"]} for e in laps if e.get("implausible")]
 
 
 def _replay(args, twin, options: LiveOptions, on_lap, out: Output) -> dict:
@@ -93,63 +116,93 @@ def _replay(args, twin, options: LiveOptions, on_lap, out: Output) -> dict:
     replay_log(args.replay, live, stats, realign=True)
     live.finish()
     value = twin.space.get(options.address)
-    out.say(f"replayed {len(live.laps)} laps ({stats.corrupted} corrupted lines); {options.address} = {value:.5g}")
+    implausible = _implausible(live.laps)
+    out.say(f"replayed {len(live.laps)} laps ({len(implausible)} implausible, {stats.corrupted} corrupted lines); "
+            f"{options.address} = {value:.5g}")
     return {"laps": len(live.laps), "lines": stats.lines, "corrupted": stats.corrupted,
-            "value": {options.address: value}, "alignments": live.alignments, "replayed": os.path.abspath(args.replay)}
+            "implausible_laps": len(implausible), "implausible": implausible, "value": {options.address: value},
+            "alignments": live.alignments, "replayed": os.path.abspath(args.replay)}
 
 
-def _link(args, twin, options: LiveOptions, state: str, on_lap, out: Output) -> dict:
-    if not args.port:
-        raise TwinError("live: give --port PATH_OR_URL (or --replay FILE)")
-    stats = LinkStats()
+def _link(args, twin, options: LiveOptions, on_lap, out: Output) -> tuple[dict, int]:
+    """Resume from the log, then read the link until --laps, --duration, Ctrl-C or SIGTERM; (summary, exit code)."""
+    state = args.state or f"{args.log}.state.json"
+    stats, signalled, gave_up = LinkStats(), [], None
     log_file = DurableLog(args.log)  # locked, a cut-off last line ended: before anything reads it
     try:
         live = LiveTwin(twin, options, state, on_lap)
-        if os.path.getsize(args.log) > 0:
-            replay_log(args.log, live, LinkStats(), realign=live.rebuild_from_log)
-            live.finish()
-            if live.rebuild_from_log:
-                live.save_state()
-            out.say(f"resumed {len(live.laps)} laps from {args.log}")
-        start_laps, t0 = len(live.laps), time.monotonic()
-        stopping = [False]
-        signal.signal(signal.SIGINT, lambda *a: stopping.__setitem__(0, True))
-        signal.signal(signal.SIGTERM, lambda *a: stopping.__setitem__(0, True))
-
-        def stop() -> bool:
-            done_laps = args.laps is not None and len(live.laps) - start_laps >= args.laps
-            timed_out = args.duration is not None and time.monotonic() - t0 > args.duration
-            return stopping[0] or done_laps or timed_out
-
-        def on_line(raw: bytes) -> bool:
+        start_laps = resume(live, args.log)
+        if start_laps:
+            out.say(f"resumed {start_laps} laps from {args.log}")
+        stop = _stopper(args, live, start_laps, signalled)
+        with _stop_on_signals(signalled):  # a clean stop: the log synced, the state saved, the summary printed
             try:
-                rec = decode(raw)
-            except WireError:
-                stats.corrupted += 1
-                return False
-            lap_event = isinstance(rec, Event) and rec.event in ("LAP", "FAIL")
-            stats.robot_laps += lap_event
-            live.feed(rec)
-            return lap_event
-
-        gave_up = None
-        try:
-            read_link(args.port, log_file, on_line, lambda: live.feed(None), stats, stop,
-                      None if args.retry_forever else args.retry)
-        except LinkGaveUp as e:
-            gave_up = str(e)
-        live.finish()
+                read_link(args.port, log_file, _line_reader(live, stats), lambda: live.feed(None), stats, stop,
+                          None if args.retry_forever else args.retry)
+            except LinkGaveUp as e:
+                gave_up = str(e)
+        live.finish()  # (a second Ctrl-C interrupts this wait: the handlers are back)
     finally:
         log_file.close()
-    value = twin.space.get(options.address)
-    new = live.laps[start_laps:]
-    summary = {"laps": len(new), "resumed_laps": start_laps, "lines": stats.lines, "corrupted": stats.corrupted,
-               "reconnects": stats.reconnects, "implausible_laps": sum(1 for e in new if e.get("implausible")),
-               "value": {options.address: value}, "alignments": live.alignments, "log": os.path.abspath(args.log),
-               "state": os.path.abspath(state), "gave_up": gave_up}
+    summary = _summary(args, live, stats, start_laps, state, gave_up, signalled)
     out.say(f"{summary['laps']} laps ({summary['implausible_laps']} implausible), {stats.lines} lines "
-            f"({stats.corrupted} corrupted), {stats.reconnects} reconnects; {options.address} = {value:.5g}; "
-            f"log {summary['log']}")
+            f"({stats.corrupted} corrupted), {stats.reconnects} reconnects; "
+            f"{options.address} = {summary['value'][options.address]:.5g}; log {summary['log']}")
     if gave_up:
-        print(f"gave up: {gave_up}", file=sys.stderr)
-    return summary
+        out.say(f"exit status 1: {gave_up}")
+    if signalled:
+        return summary, EXIT_INTERRUPTED if signalled[0] == signal.SIGINT else EXIT_TERMINATED
+    return summary, EXIT_NEGATIVE if gave_up else 0
+
+
+def _stopper(args, live: LiveTwin, start_laps: int, signalled: list[int]):
+    """When to stop reading: a signal, --laps new laps, or --duration wall seconds from now."""
+    t0 = time.monotonic()
+
+    def stop() -> bool:
+        done_laps = args.laps is not None and len(live.laps) - start_laps >= args.laps
+        timed_out = args.duration is not None and time.monotonic() - t0 > args.duration
+        return bool(signalled) or done_laps or timed_out
+
+    return stop
+
+
+def _summary(args, live: LiveTwin, stats: LinkStats, start_laps: int, state: str, gave_up: str | None,
+             signalled: list[int]) -> dict:
+    address = live.o.address
+    implausible = _implausible(live.laps[start_laps:])
+    return {"laps": len(live.laps) - start_laps, "resumed_laps": start_laps, "lines": stats.lines,
+            "corrupted": stats.corrupted, "reconnects": stats.reconnects, "implausible_laps": len(implausible),
+            "implausible": implausible, "value": {address: live.twin.space.get(address)},
+            "alignments": live.alignments, "log": os.path.abspath(args.log), "state": os.path.abspath(state),
+            "gave_up": gave_up, "stopped_by": signal.Signals(signalled[0]).name if signalled else None}
+
+
+def _line_reader(live: LiveTwin, stats: LinkStats):
+    """A received line → the live twin; True for a lap event (the link then fsyncs the log)."""
+
+    def on_line(raw: bytes) -> bool:
+        try:
+            rec = decode(raw)
+        except WireError:
+            stats.corrupted += 1
+            return False
+        lap_event = isinstance(rec, Event) and rec.event in ("LAP", "FAIL")
+        stats.robot_laps += lap_event
+        live.feed(rec)
+        return lap_event
+
+    return on_line
+
+
+@contextlib.contextmanager
+def _stop_on_signals(signalled: list[int]):
+    """While reading the link, Ctrl-C and SIGTERM ask for a clean stop (noted in ``signalled``) instead of
+    raising; the previous handlers come back afterwards."""
+    note = lambda signum, frame: signalled.append(signum)  # noqa: E731
+    previous = {s: signal.signal(s, note) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
