@@ -169,8 +169,11 @@ def test_firmware_builds_for_atmega328p(tmp_path, capsys):
     flash, ram = size[".text"] + size.get(".data", 0), size.get(".data", 0) + size.get(".bss", 0)
     with capsys.disabled():  # the figures belong in the CI log
         print(f"\nfirmware on the ATmega328P (avr-gcc -Os): flash {flash} B of 32768, RAM {ram} B of 2048")
-    assert flash < 32768 - 512  # room left for the 512 B Arduino bootloader
-    assert ram < 2048 // 2  # half the RAM stays for the stack and the drivers
+    # budgets of the control firmware (Eq. 8–11, calibration, telemetry, soft-float library): a quarter of the
+    # MCU each, so the drivers, the stack and the 512 B bootloader keep the rest; a regression (a printf, a
+    # double table, a buffer per sensor) crosses them
+    assert flash <= 8192
+    assert ram <= 512
 
 
 def test_c_wire_lines_equal_the_python_encoding():

@@ -34,7 +34,8 @@ def lap_blueprint(count: int) -> rrb.Blueprint:
             rrb.Spatial2DView(name="track", origin="/track"),
             rrb.Vertical(
                 rrb.TimeSeriesView(name="line angle e [rad]", origin="/control/e"),
-                rrb.TimeSeriesView(name="v [m/s], ω [rad/s]", contents=["/control/v", "/control/omega"]),
+                rrb.TimeSeriesView(name="speed v [m/s]", origin="/control/v"),
+                rrb.TimeSeriesView(name="turn rate ω [rad/s]", origin="/control/omega"),
                 rrb.TimeSeriesView(name="motor voltage [V]", contents=["/motors/left", "/motors/right"]),
                 rrb.TimeSeriesView(name="energy drawn [J]", origin="/energy"),
                 rrb.TimeSeriesView(name=f"calibrated readings 0..1000 ({count} sensors)", origin="/sensors/calibrated"),

@@ -1,0 +1,124 @@
+"""Each kind of recording (lap, tuning, alignment, design, live) opened in rerun's web viewer, served by the
+installed rerun, in headless Chromium: no viewer error in the console, and every panel of its blueprint shown.
+
+The viewer draws into a WebGL canvas (egui): panel titles are not in the page's DOM, so they are read from a
+screenshot with Tesseract OCR. Needs Debian's ``chromium`` and ``tesseract-ocr`` (``.ci/run`` installs both)
+and Playwright's Python package (the ``test`` extra), pointed at the system browser (see
+:mod:`twin.web_viewer`). Skipped where they are missing, except in CI (``CI`` set), where that is a failure.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+
+import pytest
+
+from twin.digital_twin import DigitalTwin
+from twin.emulator import lap_records
+from twin.viewer import viewer_executable
+from twin.web_viewer import chromium_executable, headless_chromium, served
+
+TESSERACT = shutil.which("tesseract")
+RERUN = viewer_executable()
+HAVE_TOOLS = bool(chromium_executable() and TESSERACT)
+if not HAVE_TOOLS and not os.environ.get("CI"):
+    pytest.skip("needs chromium and tesseract-ocr (CI installs them)", allow_module_level=True)
+
+if os.environ.get("CI"):
+    import playwright.sync_api  # noqa: F401  (in CI a missing package fails instead of skipping)
+else:
+    pytest.importorskip("playwright.sync_api")
+RUN = [sys.executable, "-m", "twin.run"]
+# console errors that are the network, not the viewer: no internet here (fonts, the welcome screen's examples)
+OFFLINE = re.compile(r"ERR_NAME_NOT_RESOLVED|ERR_INTERNET_DISCONNECTED|Failed to fetch|Failed to load examples")
+# (recording, panels its blueprint declares)
+PANELS = {
+    "lap": ["track", "line angle e [rad]", "speed v [m/s]", "turn rate ω [rad/s]", "motor voltage [V]", "energy drawn [J]", "calibrated readings", "cross-track error [m]"],
+    "tune": ["cost (lap time, failures penalised) [s]", "parameters (fraction of their bounds)", "best lap"],
+    "align": ["motion.mu", "lap time [s]"],
+    "design": ["lap times", "Pareto"],
+    "live": ["lap time [s]", "discrepancy, robot vs twin", "left wheel speed [rad/s]", "line position (readLine)"],
+}
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory):
+    """One small recording of each kind, made by the project's own commands."""
+    d = tmp_path_factory.mktemp("rrd")
+    log = d / "robot.log"
+    log.write_text("".join(line for _, line in lap_records(DigitalTwin(track="oval"), 7, 4, 2)))
+    oval = ["--track", "oval"]
+    commands = {
+        "lap": ["lap", *oval],
+        "tune": ["tune", *oval, "--max-iter", "1", "--param", "control.kp", "--held-out", "0", "-q"],
+        "align": ["align", *oval, "--measured-lap-time", "9"],
+        "design": ["design", *oval, "--grid", "cad.S=0.05,0.07", "--laps", "1", "--max-iter", "1", "--workers", "1",
+                   "--out-dir", str(d / "study"), "-q"],
+        "live": ["live", *oval, "--replay", str(log)],
+    }
+    out = {}
+    for kind, args in commands.items():
+        path = d / f"{kind}.rrd"
+        r = subprocess.run([*RUN, *args, "--save", str(path)], capture_output=True, text=True, timeout=300)
+        assert r.returncode in (0, 1) and path.is_file(), (kind, r.stderr)
+        out[kind] = str(path)
+    return out
+
+
+def test_every_recording_is_valid_for_rerun(recordings):
+    for kind, path in recordings.items():
+        r = subprocess.run([RERUN, "rrd", "verify", path], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, (kind, r.stdout, r.stderr)
+
+
+def ocr_words(png: str) -> list[str]:
+    text = subprocess.run([TESSERACT, png, "-"], capture_output=True, text=True, timeout=60).stdout
+    return re.findall(r"[a-z][a-z.\-]+", text.lower())
+
+
+def panel_shown(name: str, words: list[str]) -> bool:
+    """Every word of 4+ letters in the panel's title is in the screenshot's text (OCR: close matches count)."""
+    wanted = [w for w in re.findall(r"[a-z][a-z.\-]+", name.lower()) if len(w) >= 4] or [name.lower()]
+    return all(difflib.get_close_matches(w, words, n=1, cutoff=0.75) for w in wanted)
+
+
+def show(page, path: str, shot: str, panels: list[str], timeout_s: float = 60) -> tuple[list[str], list[str]]:
+    """Serve one recording to the web viewer, load it, and read the screen until every panel is seen (or time is
+    up). Returns (the words read last, the console errors)."""
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" and not OFFLINE.search(m.text) else None)
+    with served(path) as url:
+        page.goto(url, timeout=60_000)
+        deadline = time.monotonic() + timeout_s
+        words: list[str] = []
+        while time.monotonic() < deadline:
+            time.sleep(3)
+            page.screenshot(path=shot)
+            words = ocr_words(shot)
+            if all(panel_shown(name, words) for name in panels):
+                break
+    return words, errors
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with headless_chromium() as b:
+        yield b
+
+
+@pytest.mark.parametrize("kind", list(PANELS))
+def test_the_web_viewer_shows_every_panel_without_errors(browser, recordings, kind, tmp_path):
+    page = browser.new_page(viewport={"width": 1600, "height": 1000}, device_scale_factor=2)
+    try:
+        words, errors = show(page, recordings[kind], str(tmp_path / f"{kind}.png"), PANELS[kind])
+    finally:
+        page.close()
+    assert not errors, errors[:5]
+    missing = [name for name in PANELS[kind] if not panel_shown(name, words)]
+    assert not missing, f"{kind}: panels not seen: {missing}; read: {' '.join(words)[:600]}"
