@@ -1,4 +1,4 @@
-"""Which parts of a URDF are the drive wheels, the caster and the sensor mount."""
+"""Which parts of a robot description are the drive wheels, the caster and the sensor mount; how to read it."""
 
 from __future__ import annotations
 
@@ -16,10 +16,18 @@ class RobotConfig:
         whose name contains "caster".
       sensor_link: link the line-sensor array is mounted on (its origin is the array's centre).
         Auto: a link whose name contains "sensor", else the root link.
-      package_dirs: ``package://NAME`` → directory, for packages not found beside the URDF.
+      sensor_mount: (link, (x, y, z)): the array's centre in that link's frame [m]; overrides ``sensor_link``.
+      sensor_ahead: S, the array's distance ahead of the axle centre along the root's x [m]: the array moves there
+        (keeping the mount's height and side offset) and hangs from the root link.
+      package_dirs: ``package://NAME`` and ``$(find NAME)`` → directory, for packages not found beside the
+        description.
+      xacro_args: ``NAME=VALUE`` arguments of a xacro description.
     """
 
     wheel_joints: tuple[str, str] | None = None
     caster: str | None = None
     sensor_link: str | None = None
+    sensor_mount: tuple[str, tuple[float, float, float]] | None = None
+    sensor_ahead: float | None = None
     package_dirs: tuple[tuple[str, str], ...] = ()
+    xacro_args: tuple[tuple[str, str], ...] = ()

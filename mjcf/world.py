@@ -128,12 +128,12 @@ def build_world(
     root.pos = [start.x, start.y, info.ground_height]
     root.quat = [math.cos(start.yaw / 2), 0.0, 0.0, math.sin(start.yaw / 2)]
     root.add_site(name=AXLE_SITE, pos=list(info.axle_centre), size=[0.003, 0, 0], group=4)
-    mount = spec.body(info.sensor_body)
+    # the array: a frame at the mount whose z axis (each site's ray) points at the floor and whose y runs across
+    mount = spec.body(info.sensor_body).add_frame(pos=list(info.sensor_pos), quat=list(info.sensor_quat))
     mount.add_site(name=SENSOR_SITE, size=[0.003, 0, 0], group=4)
     for i, y in enumerate(sensors.lateral_offsets()):
-        # a site's z axis is its ray: turned half a turn about x, it points at the floor
-        mount.add_site(name=LINE_SENSOR.format(i), pos=[0.0, float(y), 0.0], quat=[0.0, 1.0, 0.0, 0.0],
-                       size=[0.001, 0, 0], group=4)
+        # turned half a turn about x, +y of the frame is -y of the robot: sensor 0 (leftmost) at -y here
+        mount.add_site(name=LINE_SENSOR.format(i), pos=[0.0, -float(y), 0.0], size=[0.001, 0, 0], group=4)
     for g in info.tyre_geoms:
         geom = spec.geom(g)
         geom.priority = 1  # this geom's friction governs its contacts

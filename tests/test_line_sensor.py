@@ -104,3 +104,28 @@ def test_bad_sensor_model_is_refused():
         SensorModel(aperture_m=float("nan"))
     with pytest.raises(SensorError, match="sensor.timeout_us"):
         SensorModel(timeout_us=70000)
+
+
+def test_working_height_agrees_with_the_sensor_physics():
+    """The height limit of line_sensor.working_range (a continuous integral) against the reference sensor physics
+    on a rasterised line (texture, footprint average, RC time): just below the limit the span reaches the
+    calibration minimum, just above it does not."""
+    from line_sensor.reflectance import SensorModel, footprint_reflectance
+    from line_sensor.working_range import max_working_height_m
+    from mjcf.track import GROUND_GREY, LINE_GREY
+
+    model, width, mpp, min_span = SensorModel(), 0.019, 0.0002, 300.0
+    size = 801  # 160 mm of floor, the line down the middle
+    x = (np.arange(size) - size // 2) * mpp
+    grey = np.where(np.abs(x) <= width / 2, LINE_GREY, GROUND_GREY).astype(np.uint8)[None, :].repeat(size, axis=0)
+    origin = (-(size // 2) * mpp, -(size // 2) * mpp)
+
+    def span(h):
+        r = model.footprint_radius(h)
+        on_line = footprint_reflectance(grey, origin, mpp, 0.0, 0.0, r)
+        ground = GROUND_GREY / 255
+        return model.raw_reading(on_line, h, 0.0) - model.raw_reading(ground, h, 0.0)
+
+    top = max_working_height_m(model, width, GROUND_GREY / 255, LINE_GREY / 255, min_span)
+    assert 0.01 < top < 0.05
+    assert span(top - 0.001) >= min_span > span(top + 0.001)

@@ -85,7 +85,7 @@ def test_field_change_edits_the_model_and_cad_change_rebuilds_it():
 
 def test_cad_parameters_do_not_apply_to_a_given_urdf(third_party_urdf):
     twin = DigitalTwin(robot_urdf=third_party_urdf)
-    with pytest.raises(TwinError, match="CAD parameters shape the generated robot only"):
+    with pytest.raises(TwinError, match="of the CAD parameters only cad.S"):
         twin.set("cad.L", 0.05)
 
 

@@ -89,11 +89,11 @@ def test_third_party_robot_drives_straight_on_equal_voltages(third_party_urdf):
 @pytest.mark.parametrize("text,match", [
     ("<robot name='x'><link name='a'></robot>", "not a well-formed URDF"),
     ("<robt name='x'/>", "expected <robot>"),
-    (minimal_urdf(wheels=1), "needs two continuous wheel joints"),
+    (minimal_urdf(wheels=1), "cannot tell the two drive wheels .*--wheel-joints LEFT,RIGHT"),
     (minimal_urdf(extra="<link name='lost'/>"), "expected one root link"),
     (minimal_urdf(extra="<joint name='j' type='fixed'><parent link='base'/><child link='m'/></joint>"
                         "<link name='m'><visual><geometry><mesh filename='package://nope/m.stl'/></geometry></visual></link>"),
-     "mesh 'package://nope/m.stl' of link m not found"),
+     "package://nope/m.stl: package 'nope' not found .*--package nope=DIR"),
     (minimal_urdf(extra="<joint name='j' type='continuous'><parent link='base'/><child link='m'/></joint><link name='m'/>"),
      "cannot tell the two drive wheels|has no mass"),
 ])

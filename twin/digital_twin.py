@@ -22,17 +22,19 @@ from lf_common.cache import cache_dir, cached_folder
 from mjcf.cad import write_robot
 from mjcf.design import RobotDesign
 from mjcf.robot_config import RobotConfig
-from mjcf.track import FloorTexture, Track
+from mjcf.track import GROUND_GREY, LINE_GREY, FloorTexture, Track
 from mjcf.urdf_to_mjcf import RobotInfo
 from mjcf.world import AXLE_SITE, FLOOR, MOTORS, SENSOR_SITE, PhysicsOptions, build_world, compile_world, write_texture_png
 from line_sensor.geometry import SensorArray, SensorError
 from line_sensor.reflectance import SensorModel
+from line_sensor.working_range import describe as describe_sensor, max_working_height_m
 from motors import MotorConstants
 from motors.actuator import write_fields
 from twin import core
 from twin.controller import ControlParams
 from twin.environment import load_track
 from twin.errors import TwinError
+from twin.lap import LapLimits
 from twin.lap_cache import BatchCache, CalibrationCache
 from twin.model_space import ChangeCost, ModelSpace
 from twin.models import default_space
@@ -49,8 +51,9 @@ class DigitalTwin:
 
     Args:
       track: built-in track name or PNG path.
-      robot_urdf: a URDF to use instead of the generated robot (then ``cad.*`` cannot be set).
-      robot_config: names of wheels, caster and sensor mount in ``robot_urdf``.
+      robot_urdf: a robot description (URDF or xacro) to use instead of the generated robot; then of ``cad.*``
+        only ``cad.S`` can be set (it moves the line array to S ahead of the axle).
+      robot_config: names of wheels, caster and sensor mount in ``robot_urdf``, xacro arguments, packages.
       track_metres_per_pixel: scale of a PNG track without DPI metadata, in [m].
       space: the model space (default: :func:`twin.models.default_space`).
     """
@@ -79,6 +82,7 @@ class DigitalTwin:
         self.sensor_distance = 0.0  # S measured on the built robot: axle centre to sensor array [m]
         self.batches = BatchCache()  # run_laps' mujoco.batch, per build
         self.calibrations = CalibrationCache()  # calibration turns made, per build
+        self.sensor_ahead: float | None = None  # cad.S set for a description's robot: where its array goes [m]
 
     def clone(self, changes: Mapping[str, float] | None = None) -> "DigitalTwin":
         """Another twin of the same robot on the same track with the same values (and ``changes``), built on its
@@ -86,27 +90,37 @@ class DigitalTwin:
         other = DigitalTwin(track=self.track_source, robot_urdf=self.robot_urdf, robot_config=self.robot_config,
                             track_metres_per_pixel=self.track_metres_per_pixel)
         other.space.values.update(self.space.values)
+        other.sensor_ahead = self.sensor_ahead
         if changes:
             other.update(dict(changes))
         return other
 
     # --- parameters
     def _check_applies(self, address: str) -> None:
-        """CAD parameters shape the generated robot; a given URDF is its own CAD model."""
-        if address.startswith("cad.") and self.robot_urdf is not None:
+        """CAD parameters shape the generated robot; a given description is its own CAD model, except for where
+        its line array sits ahead of the axle (``cad.S``)."""
+        if address.startswith("cad.") and address != "cad.S" and self.robot_urdf is not None:
             self.space.parameter(address)  # an unknown address is reported as such first
-            raise TwinError(f"{address}: the robot comes from {self.robot_urdf}; CAD parameters shape the generated robot only")
+            raise TwinError(f"{address}: the robot comes from {self.robot_urdf}; of the CAD parameters only cad.S "
+                            "(the line array's distance ahead of the axle) applies to it")
+
+    def _note_sensor_ahead(self, changes: Mapping[str, float]) -> None:
+        if self.robot_urdf is not None and "cad.S" in changes:
+            self.sensor_ahead = self.space.get("cad.S")
 
     def set(self, address: str, value: float) -> ChangeCost:
         """Set a model-space parameter; returns what it costs (applied at the next :meth:`model`)."""
         self._check_applies(address)
-        return self.space.set(address, value)
+        cost = self.space.set(address, value)
+        self._note_sensor_ahead({address: value})
+        return cost
 
     def update(self, changes: dict[str, float]) -> None:
         """Set several parameters, all checked before any is stored."""
         for address in changes:
             self._check_applies(address)
         self.space.update(changes)
+        self._note_sensor_ahead(changes)
 
     def checked_values(self, changes: Mapping[str, float]) -> dict[str, float]:
         """The twin's values with ``changes`` applied, each checked as :meth:`set` checks it; the twin is not changed."""
@@ -185,7 +199,7 @@ class DigitalTwin:
     def _rebuild_key(self) -> tuple:
         rebuild = {a: self.space.values[a] for a in self.space.addresses if self.space.parameter(a).cost is ChangeCost.REBUILD}
         # inductance 0 ↔ > 0 adds or removes the current state: a structural change
-        return (_digest(rebuild), self.space.get("motor.L_M") > 0, self.robot_urdf, self.track_source)
+        return (_digest(rebuild), self.space.get("motor.L_M") > 0, self.robot_urdf, self.track_source, self.sensor_ahead)
 
     def _ensure_track(self) -> None:
         env = self.space.model_values("environment")
@@ -213,6 +227,27 @@ class DigitalTwin:
                                lambda tmp: write_robot(design, tmp), "generated robot")
         return os.path.join(folder, "robot.urdf")
 
+    def sensor_height(self) -> float:
+        """The line array's height above the floor at the start pose [m]."""
+        data = mujoco.MjData(self._model)
+        mujoco.mj_resetDataKeyframe(self._model, data, 0)
+        mujoco.mj_kinematics(self._model, data)
+        return float(data.site(SENSOR_SITE).xpos[2])
+
+    def _check_sensor_height(self) -> None:
+        """A description's line array must sit where the sensor model can tell the line from the ground."""
+        h = self.sensor_height()
+        model = self.sensor_model()
+        top = max_working_height_m(model, self.space.get("environment.line_width"), GROUND_GREY / 255,
+                                   LINE_GREY / 255, LapLimits().min_calibration_range_us)
+        fix = "place it with --sensor-mount LINK:X,Y,Z (X ahead, Z up, in LINK's frame)"
+        if h <= 0:
+            raise TwinError(f"sensor mount: the line array is {-h * 1000:.1f} mm below the floor; {fix}")
+        if h > top:
+            raise TwinError(f"sensor mount: the line array is {h * 1000:.1f} mm above the floor, where the sensor model "
+                            f"cannot tell the line from the ground (it can up to {top * 1000:.1f} mm; "
+                            f"{describe_sensor(model)}); {fix}")
+
     def spec(self) -> mujoco.MjSpec:
         """The world's spec (built if needed), e.g. to save it as MJCF."""
         self.model()
@@ -224,15 +259,20 @@ class DigitalTwin:
         if self._model is None or key != self._built_key:
             self._ensure_track()
             urdf = self._urdf()
+            config = self.robot_config
+            if self.sensor_ahead is not None:
+                config = dataclasses.replace(config, sensor_ahead=self.sensor_ahead)
             spec, info = build_world(
                 urdf, self.texture, self._texture_png(), self.track.start_pose(), self.motor(), self.physics(),
-                self.robot_config, self.sensor_array(),
+                config, self.sensor_array(),
             )
             spec.nuserdata = core.SIM_WORDS + RECORD_CAPACITY * core.RECORD_WORDS  # the C loop's state and trace
             spec.add_numeric(name=CENTRE_LINE, data=centre_line_data(self.track))  # the C loop's lap progress
             self._model = compile_world(spec, urdf)
             _hold_texture(self._model, self.texture)
             self.sensor_distance = _sensor_distance(self._model, self.track.start_pose().yaw)
+            if self.robot_urdf is not None:
+                self._check_sensor_height()
             self._spec, self.info, self._built_key = spec, info, key
             self.rebuilds += 1
             log.info("built world: robot %s on track %s", urdf, self.track.name)
@@ -272,7 +312,8 @@ def _sensor_distance(model: mujoco.MjModel, yaw: float) -> float:
     ahead = data.site(SENSOR_SITE).xpos[:2] - data.site(AXLE_SITE).xpos[:2]
     s = float(ahead @ np.array([np.cos(yaw), np.sin(yaw)]))
     if s <= 0.005:
-        raise TwinError(f"sensor mount: the array is {s * 1000:.1f} mm ahead of the axle; a line follower needs it in front")
+        raise TwinError(f"sensor mount: the array is {s * 1000:.1f} mm ahead of the axle; a line follower needs it in front "
+                        "(for a robot description: --sensor-mount LINK:X,Y,Z, or --set cad.S=DISTANCE)")
     return s
 
 

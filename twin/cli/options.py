@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from typing import Sequence
 
+from mjcf.robot_config import RobotConfig
 from twin.cli.guard import fail
 from twin.digital_twin import DigitalTwin
 from twin.errors import TwinError
@@ -94,7 +96,22 @@ def add_world(p: argparse.ArgumentParser, track_default: str | None = "default",
     p.add_argument("--metres-per-pixel", type=number(0.0, 0.1, lo_open=True), metavar="M",
                    help="scale of an image track without DPI metadata [m]")
     if robot:
-        p.add_argument("--robot", metavar="URDF", help="a differential-drive URDF instead of the generated robot")
+        p.add_argument("--robot", metavar="URDF|XACRO", help="a differential-drive robot description (.urdf, .xacro, "
+                       ".urdf.xacro) instead of the generated robot")
+        add_description(p)
+
+
+def add_description(p: argparse.ArgumentParser) -> None:
+    """How to read a robot description and find its parts: wheels, caster, line-sensor mount, packages, xacro."""
+    p.add_argument("--xacro-arg", action="append", metavar="NAME=VALUE", help="an argument of a xacro description, repeatable")
+    p.add_argument("--package", action="append", metavar="NAME=DIR", help="where package://NAME (and $(find NAME)) "
+                   "lives, repeatable (default: searched above the description)")
+    p.add_argument("--wheel-joints", metavar="LEFT,RIGHT", help="the drive wheels' joints; fixed hub joints become "
+                   "wheels (default: named by a diff-drive plugin, else the two continuous joints across the robot)")
+    p.add_argument("--caster", metavar="NAME", help="the caster's link or collision (default: names containing 'caster')")
+    p.add_argument("--sensor-link", metavar="LINK", help="the link the line array mounts on, at its origin "
+                   "(default: a link named *sensor*)")
+    p.add_argument("--sensor-mount", metavar="LINK:X,Y,Z", help="the line array's centre in LINK's frame [m]")
 
 
 def add_values(p: argparse.ArgumentParser, set_help: str = "a model-space parameter (see 'graph'), repeatable") -> None:
@@ -190,6 +207,50 @@ def parse_grid(items: Sequence[str] | None, flag: str = "--grid") -> dict[str, t
     return out
 
 
+def parse_sensor_mount(text: str | None) -> tuple[str, tuple[float, float, float]] | None:
+    """``"base_link:0.1,0,-0.03"`` → ("base_link", (0.1, 0.0, -0.03))."""
+    if not text:
+        return None
+    link, sep, xyz = text.rpartition(":")
+    try:
+        values = tuple(float(v) for v in xyz.split(","))
+    except ValueError:
+        values = ()
+    if not sep or not link or len(values) != 3 or not all(math.isfinite(v) and abs(v) < 10 for v in values):
+        raise TwinError(f"--sensor-mount {text!r}: expected LINK:X,Y,Z in metres, e.g. base_link:0.1,0,-0.03")
+    return link, values  # type: ignore[return-value]
+
+
+def robot_config(args: argparse.Namespace) -> RobotConfig:
+    """Which parts of the robot description are the wheels, caster and sensor mount, and how to read it."""
+    wheels = None
+    if getattr(args, "wheel_joints", None):
+        parts = args.wheel_joints.split(",")
+        if len(parts) != 2 or not all(p.strip() for p in parts):
+            raise TwinError(f"--wheel-joints {args.wheel_joints!r}: expected LEFT,RIGHT")
+        wheels = (parts[0].strip(), parts[1].strip())
+    packages = []
+    for item in getattr(args, "package", None) or ():
+        name, sep, path = item.partition("=")
+        if not sep or not name.strip() or not path.strip():
+            raise TwinError(f"--package {item!r}: expected NAME=DIR")
+        if not os.path.isdir(path):
+            raise TwinError(f"--package {item}: {path} is not a folder")
+        packages.append((name.strip(), path))
+    xacro_args = tuple(parse_assignments(getattr(args, "xacro_arg", None), "--xacro-arg").items())
+    description = getattr(args, "robot", None) or getattr(args, "urdf", None)
+    given = [f for f, v in (("--wheel-joints", wheels), ("--caster", getattr(args, "caster", None)),
+                            ("--sensor-link", getattr(args, "sensor_link", None)),
+                            ("--sensor-mount", getattr(args, "sensor_mount", None)), ("--package", packages),
+                            ("--xacro-arg", xacro_args)) if v]
+    if given and not description:
+        raise TwinError(f"{given[0]}: describes a robot description; give one with --robot")
+    return RobotConfig(wheel_joints=wheels, caster=getattr(args, "caster", None),
+                       sensor_link=getattr(args, "sensor_link", None),
+                       sensor_mount=parse_sensor_mount(getattr(args, "sensor_mount", None)),
+                       package_dirs=tuple(packages), xacro_args=xacro_args)
+
+
 # --- the twin the flags describe -----------------------------------------------------------------------
 
 def twin_from_args(args: argparse.Namespace, track: str | None = None) -> DigitalTwin:
@@ -200,7 +261,7 @@ def twin_from_args(args: argparse.Namespace, track: str | None = None) -> Digita
       track: overrides ``args.track`` (e.g. the track a telemetry file names).
     """
     twin = DigitalTwin(track=track or getattr(args, "track", None) or "default", robot_urdf=getattr(args, "robot", None),
-                       track_metres_per_pixel=getattr(args, "metres_per_pixel", None))
+                       robot_config=robot_config(args), track_metres_per_pixel=getattr(args, "metres_per_pixel", None))
     changes: dict = {}
     if getattr(args, "gains", None):
         changes.update(load_gains(args.gains, twin.space))

@@ -11,7 +11,6 @@ from lf_common.files import check_output_file, first_line_is_ours, output_dir
 from mjcf.cad import write_robot
 from mjcf.design import RobotDesign
 from mjcf.errors import MjcfError
-from mjcf.robot_config import RobotConfig
 from mjcf.world import build_world, compile_world, save_xml, write_texture_png
 from motors import POLOLU_MP_6V_30_1
 from twin.cli import options as o
@@ -38,13 +37,11 @@ def add_generate(sub) -> None:
 def add_convert(sub) -> None:
     c = sub.add_parser("convert", help=CONVERT_HELP, description=CONVERT_HELP + "; meshes and the floor texture go "
                        "to <stem>_assets/ beside the XML.")
-    c.add_argument("urdf", help="robot URDF (relative and package:// mesh paths are resolved)")
+    c.add_argument("urdf", metavar="DESCRIPTION", help="robot description: .urdf, .xacro or .urdf.xacro (relative and "
+                   "package:// mesh paths are resolved)")
     o.add_out(c, "the MJCF (assets in <stem>_assets/ beside it)", "WORLD.xml", required=True)
     o.add_world(c, robot=False)
-    c.add_argument("--wheel-joints", metavar="LEFT,RIGHT", help="drive wheel joints (auto-detected if unambiguous)")
-    c.add_argument("--caster", metavar="NAME", help="caster link or collision name (default: names containing 'caster')")
-    c.add_argument("--sensor-link", metavar="LINK", help="link the line sensor mounts on (default: a link named *sensor*)")
-    c.add_argument("--package", action="append", metavar="NAME=DIR", help="where package://NAME lives, repeatable")
+    o.add_description(c)
     o.add_json(c)
     o.add_verbose(c)
     c.set_defaults(run=run_convert)
@@ -73,27 +70,10 @@ def run_generate(args: argparse.Namespace) -> int:
     return 0
 
 
-def robot_config(args: argparse.Namespace) -> RobotConfig:
-    """Which parts of a URDF are the wheels, caster and sensor mount, and where its packages are."""
-    wheels = None
-    if args.wheel_joints:
-        parts = args.wheel_joints.split(",")
-        if len(parts) != 2 or not all(p.strip() for p in parts):
-            raise MjcfError(f"--wheel-joints {args.wheel_joints!r}: expected LEFT,RIGHT")
-        wheels = (parts[0].strip(), parts[1].strip())
-    packages = []
-    for p in args.package or ():
-        name, sep, path = p.partition("=")
-        if not sep or not name or not path:
-            raise MjcfError(f"--package {p!r}: expected NAME=DIR")
-        packages.append((name, path))
-    return RobotConfig(wheel_joints=wheels, caster=args.caster, sensor_link=args.sensor_link, package_dirs=tuple(packages))
-
-
 def run_convert(args: argparse.Namespace) -> int:
     out = Output(args.json)
     check_output_file(args.out, first_line_is_ours, "MJCF file")
-    config = robot_config(args)
+    config = o.robot_config(args)
     space = default_space()
     track, texture = load_track(args.track, space.get("environment.line_width"),
                                 space.get("environment.texture_resolution"), args.metres_per_pixel)
