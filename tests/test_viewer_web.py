@@ -103,7 +103,7 @@ def show(page, path: str, shot: str, panels: list[str], timeout_s: float = 60) -
             words = ocr_words(shot)
             if all(panel_shown(name, words) for name in panels):
                 break
-    return words, errors
+        return words, list(errors)  # (taken while the server runs: its end breaks the page's open stream)
 
 
 @pytest.fixture(scope="module")
