@@ -195,3 +195,45 @@ def test_bad_robot_options_are_one_line_exit_2(xacro_path, args, fix):
 def test_robot_options_without_a_robot_are_refused():
     line = one_line_exit_2(run("lap", "--track", "oval", "--sensor-mount", rs.SENSOR_MOUNT))
     assert "--robot" in line
+
+
+# --- motors and gains for the robot -------------------------------------------------------------------------
+
+def test_motor_choice_by_hand():
+    """The default motor fits the default robot (hand: 2·½·0.0324 N·m / 16 mm = 2.02 N against 0.21 kg·g = 2.06 N,
+    0.98 g); a 10 kg robot on 33 mm wheels gets a sized motor with τ_stall = m·g·R = 3.236 N·m and 1 m/s."""
+    from motors.catalogue import CATALOGUE
+    from motors.choice import choose
+
+    c = choose(CATALOGUE, 0.21, 0.016, 6.0)
+    assert c.name == "pololu-mp-6v-30" and "0.98 g" in c.reason
+    heavy = choose(CATALOGUE, 10.0, 0.033, 6.0)
+    assert heavy.name == "sized"
+    assert heavy.datasheet.stall_torque == pytest.approx(10.0 * 9.80665 * 0.033, rel=1e-12)
+    assert heavy.datasheet.no_load_speed * 0.033 == pytest.approx(1.0, rel=1e-12)
+    m = heavy.datasheet.constants()  # a motor the model space accepts
+    DigitalTwin().space.update({"motor.R_M": m.R_M, "motor.K": m.K, "motor.b_M": m.b_M, "motor.gear": m.gear,
+                                "motor.L_M": m.L_M, "motor.J_rotor": m.J_rotor})
+
+
+def test_a_heavy_robot_gets_a_motor_that_moves_it_and_says_so(tmp_path, third_party_urdf):
+    r = run("lap", "--robot", third_party_urdf, "--track", "oval", "--json")
+    assert r.returncode in (0, 1), r.stderr
+    assert "motor: sized: no catalogue motor fits 0.869 kg on 33 mm wheels" in r.stderr
+    assert json.loads(r.stdout)["distance_m"] > 1.0  # it drives (the 3pi's motor barely moved it)
+
+
+def test_tuner_bounds_follow_the_robot(xacro_path):
+    from tuner.space import DEFAULT_BOUNDS, robot_bounds
+
+    twin = DigitalTwin(track="oval", robot_urdf=xacro_path, robot_config=RobotConfig(sensor_mount=MOUNT))
+    b = robot_bounds(twin)
+    v_top = twin.space.get("control.full_speed") * rs.WHEEL_RADIUS
+    assert b["control.v_max"][1] == pytest.approx(DEFAULT_BOUNDS["control.v_max"][1] * v_top / 1.206)
+    assert b["control.kp"][1] == pytest.approx(DEFAULT_BOUNDS["control.kp"][1] * v_top / 1.206 * 0.075 / 0.040)
+    assert robot_bounds(DigitalTwin(track="oval")) == DEFAULT_BOUNDS
+
+
+def test_unknown_motor_lists_the_catalogue(xacro_path):
+    line = one_line_exit_2(run("lap", "--track", "oval", "--motor", "nope"))
+    assert "not in the motor catalogue" in line and "pololu-mp-6v-30" in line

@@ -26,6 +26,33 @@ DEFAULT_BOUNDS: dict[str, tuple[float, float]] = {
 }
 
 
+# the robot the default bounds were set for: the 3pi-class default robot's top speed (30:1 MP motors at 6 V on
+# 16 mm wheels: 75.4 rad/s × 16 mm) and sensor distance
+REFERENCE_TOP_SPEED = 1.206  # [m/s]
+REFERENCE_S = 0.040  # [m]
+
+
+def robot_bounds(twin) -> dict[str, tuple[float, float]]:
+    """Default search bounds for the twin's robot. The generated robot gets :data:`DEFAULT_BOUNDS`; a robot from a
+    description gets them scaled to it: speeds (v_max, K_B) by its top speed v_top (the firmware's full wheel
+    speed × wheel radius) against the reference robot's, and K_P, K_I, K_D by v_top · S: on the same track a
+    faster robot needs proportionally faster turns, and an array further ahead sees a smaller line angle
+    (e ≈ offset / S) for the same offset from the line. The wheel base needs no scaling: the firmware turns ω
+    into wheel speeds with the robot's own L."""
+    if twin.robot_urdf is None:
+        return dict(DEFAULT_BOUNDS)
+    twin.model()
+    v_top = twin.space.get("control.full_speed") * twin.info.wheel_radius
+    speed = v_top / REFERENCE_TOP_SPEED
+    turn = speed * twin.sensor_distance / REFERENCE_S
+    scale = {"control.v_max": speed, "control.kb": speed, "control.kp": turn, "control.ki": turn, "control.kd": turn}
+    out = {}
+    for a, (lo, hi) in DEFAULT_BOUNDS.items():
+        p = twin.space.parameter(a)  # within what the parameter allows
+        out[a] = (max(lo * scale[a], p.lower), min(hi * scale[a], p.upper))
+    return out
+
+
 class TunerError(TwinError):
     """Bad input to the learning model; the message names the input and the fault."""
 

@@ -8,6 +8,7 @@ Also the one public way to build a twin from command-line options: :func:`twin_f
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import os
 import sys
@@ -17,9 +18,11 @@ from mjcf.robot_config import RobotConfig
 from twin.cli.guard import fail
 from twin.digital_twin import DigitalTwin
 from twin.errors import TwinError
+from twin.motor_setup import catalogue_motor, motor_for_robot, motor_values
 from twin.parameter_files import load_gains, load_values
 
 MAX_SEED = 2**64 - 1
+log = logging.getLogger(__name__)
 
 
 class Formatter(argparse.RawDescriptionHelpFormatter):
@@ -98,6 +101,9 @@ def add_world(p: argparse.ArgumentParser, track_default: str | None = "default",
     if robot:
         p.add_argument("--robot", metavar="URDF|XACRO", help="a differential-drive robot description (.urdf, .xacro, "
                        ".urdf.xacro) instead of the generated robot")
+        p.add_argument("--motor", metavar="NAME", help="both drive motors from the motor catalogue (default: the "
+                       "generated robot's; for a --robot, the catalogue motor that fits its mass and wheels, else one "
+                       "sized for it)")
         add_description(p)
 
 
@@ -269,4 +275,22 @@ def twin_from_args(args: argparse.Namespace, track: str | None = None) -> Digita
         changes.update(load_values(args.params, twin.space))
     changes.update(parse_assignments(getattr(args, "set", None)))
     twin.update(changes)
+    _choose_motor(twin, getattr(args, "motor", None), changes)
     return twin
+
+
+def _choose_motor(twin: DigitalTwin, name: str | None, changes: dict) -> None:
+    """``--motor NAME``, or for a robot description without motor values of its own, the motor that fits it;
+    values given with --gains, --params or --set still win. Says what it chose."""
+    if name is None and (twin.robot_urdf is None or any(a.startswith("motor.") and a != "motor.supply_voltage"
+                                                        for a in changes)):
+        return
+    supply = twin.space.get("motor.supply_voltage")
+    if name is not None:
+        datasheet, why = catalogue_motor(name), f"--motor {name}"
+    else:
+        choice = motor_for_robot(twin, supply)
+        datasheet, why = choice.datasheet, f"{choice.name}: {choice.reason}"
+    values = {a: v for a, v in motor_values(datasheet, supply).items() if a not in changes}
+    twin.update(values)
+    log.warning("motor: %s", why)

@@ -29,7 +29,8 @@ from tuner.gradient import DescentOptions, descend, sequential
 from tuner.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk, held_out_seeds, label
 from tuner.objective import LapObjective
 from tuner.recording import save_tuning
-from tuner.space import SearchSpace, TunerError
+from tuner.start import rescue_start
+from tuner.space import DEFAULT_BOUNDS, SearchSpace, TunerError, robot_bounds
 
 HELP = "tune the gains (default: v_max, K_B, K_P, K_I, K_D) by gradient descent on the lap time"
 
@@ -129,7 +130,11 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.out, json_is_ours, "parameter file")
     recording.check_targets(args.save, args.view)
     twin = o.twin_from_args(args)
-    space = SearchSpace(twin.space, args.param or (), o.parse_bounds(args.bounds))
+    searched = args.param or list(DEFAULT_BOUNDS)
+    derived = {a: b for a, b in robot_bounds(twin).items() if a in searched}
+    if twin.robot_urdf is not None:
+        out.say("search bounds for this robot: " + ", ".join(f"{a}=[{lo:.3g}, {hi:.3g}]" for a, (lo, hi) in derived.items()))
+    space = SearchSpace(twin.space, args.param or (), {**derived, **o.parse_bounds(args.bounds)})
     x0 = space.start(twin.space)
     envelope, risk = envelope_from(args, twin)
     objective = LapObjective(twin, space, nthread=args.workers, envelope=envelope, risk=risk)
@@ -155,7 +160,10 @@ def run(args: argparse.Namespace) -> int:
     search = descend if args.method == "batch" else sequential
     interrupted = False
     try:
-        result = search(objective, space.to_unit(x0), DescentOptions(max_iter=args.max_iter), on_iteration=on_iteration)
+        z0, note = rescue_start(objective, space.to_unit(x0))
+        if note:
+            bar.write(f"note: {note}", file=sys.stderr)
+        result = search(objective, z0, DescentOptions(max_iter=args.max_iter), on_iteration=on_iteration)
         converged, reason = result.converged, result.reason
     except (_Stop, KeyboardInterrupt):
         interrupted, converged, reason = True, False, "interrupted"
