@@ -237,3 +237,23 @@ def test_tuner_bounds_follow_the_robot(xacro_path):
 def test_unknown_motor_lists_the_catalogue(xacro_path):
     line = one_line_exit_2(run("lap", "--track", "oval", "--motor", "nope"))
     assert "not in the motor catalogue" in line and "pololu-mp-6v-30" in line
+
+
+@pytest.mark.parametrize("changes,cause", [
+    ({"cad.sensor_height": 0.028}, "likely sensor height: 28.0 mm above the floor"),  # above the working range
+    # hand: outer sensor 3.5 × 9.525 mm + half the 19 mm line at S = 40 mm: atan(0.04284 / 0.04) = 0.82 rad
+    ({"control.cal_sweep": 0.25}, r"likely turn too short: .* ±0\.82 rad, the turn goes ±0\.25 rad"),
+])
+def test_calibration_failures_name_their_cause(changes, cause):
+    from twin.closed_loop import run_laps
+
+    twin = DigitalTwin(track="oval")
+    twin.update(changes)
+    r = run_laps(twin, [{}], seed=0)[0]
+    assert r.failure == "calibration" and __import__("re").search(cause, r.detail), r.detail
+
+
+def test_a_motor_too_weak_for_the_robot_is_named(third_party_urdf):
+    r = run("lap", "--robot", third_party_urdf, "--motor", "pololu-mp-6v-30", "--track", "oval", "--json")
+    d = json.loads(r.stdout)
+    assert d["failure"] == "calibration" and "likely motor too weak" in d["detail"], d["detail"]

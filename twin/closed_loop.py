@@ -26,6 +26,7 @@ import numpy as np
 
 from mjcf.world import AXLE_SITE, LINE_SENSOR, MOTORS, START_KEY, PhysicsOptions
 from twin import core
+from twin.calibration_cause import calibration_cause
 from twin.controller import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
 from twin.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
@@ -244,7 +245,7 @@ def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limi
     """Put each lap in the run phase with the calibration (min, max and noise generator state) its turn made;
     a lap whose turn failed or left a sensor with too small a range ends here. Returns (min, max) per lap."""
     cal = []
-    for sim, judge, k in zip(fleet.sims, fleet.judges, keys):
+    for lap, sim, judge, k in zip(fleet.laps, fleet.sims, fleet.judges, keys):
         if k not in turns:
             if k in failed:
                 code, detail, t, _, energy = failed[k]
@@ -259,8 +260,9 @@ def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limi
         spans = np.array(hi) - np.array(lo)
         if np.min(spans) < limits.min_calibration_range_us:
             bad = int(np.argmin(spans))
-            judge.fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn "
-                       "(turn further: control.cal_sweep, control.cal_duty)", 0.0, 0.0)
+            cause = calibration_cause(fleet.twin, lap.params, lap.sensor, limits.min_calibration_range_us)
+            judge.fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; likely "
+                       f"{cause}", 0.0, 0.0)
         start_phase(sim, RUN)
     return cal
 
