@@ -5,4 +5,6 @@ rules for writing outputs without losing the user's files and reading inputs wit
 
 from lf_common.errors import InputTooLarge, LineFollowerError, OutputError
 
-__all__ = ["InputTooLarge", "LineFollowerError", "OutputError"]
+VERSION = "0.1.0"  # the package's version (pyproject.toml reads it from here)
+
+__all__ = ["InputTooLarge", "LineFollowerError", "OutputError", "VERSION"]

@@ -32,6 +32,9 @@ def add_parser(sub) -> None:
     p.add_argument("--laps", type=o.count_type, default=20, metavar="N", help="laps per design after tuning, one noise seed each")
     p.add_argument("--max-iter", type=o.count_type, default=30, metavar="N", help="tuning iteration cap per design")
     o.add_workers(p, "designs (processes)")
+    p.add_argument("--cluster", metavar="auto|ray://HOST:PORT", help="run the designs as Ray tasks on a cluster "
+                   "(pip install -e '.[cluster]'; auto: the cluster this machine joined with 'ray start'); results "
+                   "equal a local run")
     o.add_out_dir(p, "the charts, table and gains", "design_study")
     o.add_json(p)
     o.add_recording(p, "the charts")
@@ -59,8 +62,16 @@ def run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     bar = tqdm(total=len(designs), desc="designs", unit="design", disable=args.quiet or None)
-    results = study(designs, base, laps=args.laps, max_iter=args.max_iter, workers=args.workers,
-                    on_done=lambda r: (bar.update(1), bar.set_postfix_str(f"{r.label}: {r.median_s:.3f} s" if r.ok else f"{r.label}: failed")))
+    def on_done(r):
+        bar.update(1)
+        bar.set_postfix_str(f"{r.label}: {r.median_s:.3f} s" if r.ok else f"{r.label}: failed")
+
+    if args.cluster:
+        from tuner.cluster import study_on_ray
+
+        results = study_on_ray(designs, base, args.laps, args.max_iter, args.cluster, on_done=on_done)
+    else:
+        results = study(designs, base, laps=args.laps, max_iter=args.max_iter, workers=args.workers, on_done=on_done)
     bar.close()
     wall = time.perf_counter() - t0
     front = pareto(results)

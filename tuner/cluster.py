@@ -1,0 +1,101 @@
+"""A design study on a Ray cluster: one Ray task per design (rebuild, tune, race), gathered in design order.
+
+* **Same answer as a local run.** A design's result depends on its values, the base values and the seeds only
+  (each task tunes with one thread, as a local worker does), never on the node or the order tasks finish in.
+* **No shared filesystem.** Each task builds its robot and track into its own node's verified cache
+  (:mod:`lf_common.cache`); nothing but the design, the base values and the result crosses the network. The
+  nodes need this package installed, at the driver's version (checked: a task on another version fails).
+* **Nothing lost, nothing twice.** A task whose worker dies (killed, out of memory, a node lost) is retried by
+  Ray up to ``RETRIES`` times; results are keyed by the design's index and taken once, so a retried design
+  is counted once. A design that fails on its own merits is a result (``ok=False``), not retried.
+* ``auto`` joins the cluster this machine belongs to (``ray start --head`` or a worker node); ``ray://HOST:PORT``
+  goes through the Ray Client. Ray is an optional extra: ``pip install -e '.[cluster]'``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Callable, Sequence
+
+from lf_common import VERSION
+from lf_common.errors import LineFollowerError
+from tuner.design import DesignResult, run_design
+
+log = logging.getLogger(__name__)
+
+RETRIES = 3  # attempts after a worker dies, per design
+CONNECT_TIMEOUT_S = 60.0  # [s] to join the cluster
+POLL_S = 1.0  # [s] between progress checks
+
+
+class ClusterError(LineFollowerError):
+    """The cluster cannot be used: Ray missing, no cluster at the address, a version mismatch."""
+
+
+def _version() -> str:
+    return VERSION
+
+
+def _task(design: dict, base: dict, laps: int, max_iter: int, version: str) -> DesignResult:
+    if _version() != version:
+        raise ClusterError(f"this node has line-follower-twin {_version()}, the driver {version}: install the same version")
+    return run_design(design, base, laps, max_iter)
+
+
+def connect(address: str):
+    """Join the cluster at ``address`` (``auto`` or ``ray://HOST:PORT``); returns the ray module."""
+    try:
+        import ray
+    except ImportError:
+        raise ClusterError("--cluster needs Ray: pip install -e '.[cluster]'") from None
+    if not (address == "auto" or address.startswith("ray://")):
+        raise ClusterError(f"--cluster {address}: expected auto or ray://HOST:PORT")
+    if ray.is_initialized():
+        return ray
+    try:
+        ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING)
+    except (ConnectionError, RuntimeError, ValueError, TimeoutError) as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise ClusterError(f"--cluster {address}: no Ray cluster there ({first}); start one with 'ray start --head'") from None
+    return ray
+
+
+def study_on_ray(designs: Sequence[dict], base: dict, laps: int, max_iter: int, address: str,
+                 on_done: Callable[[DesignResult], None] | None = None) -> list[DesignResult]:
+    """Every design as one Ray task; results in the order of ``designs`` (see the module docstring)."""
+    ray = connect(address)
+    remote = ray.remote(num_cpus=1, max_retries=RETRIES, retry_exceptions=False)(_task)
+    version = _version()
+    refs = [remote.remote(d, base, laps, max_iter, version) for d in designs]
+    index = {ref: i for i, ref in enumerate(refs)}
+    results: list[DesignResult | None] = [None] * len(designs)
+    pending = list(refs)
+    try:
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1, timeout=POLL_S)
+            for ref in ready:
+                i = index[ref]
+                try:
+                    results[i] = ray.get(ref)
+                except ray.exceptions.RayTaskError as e:  # an error the task raised itself: the node's fault
+                    cause = e.cause if isinstance(getattr(e, "cause", None), LineFollowerError) else e
+                    raise ClusterError(f"design {designs[i]}: {str(cause).strip().splitlines()[-1]}") from None
+                except ray.exceptions.RayError as e:  # retries used up (workers kept dying): say so, stop
+                    raise ClusterError(f"design {designs[i]}: lost after {RETRIES} retries ({type(e).__name__})") from None
+                if on_done is not None:
+                    on_done(results[i])
+    except BaseException:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        raise
+    return results  # type: ignore[return-value]
+
+
+def wait_for_cluster(ray, cpus: int, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Block until the cluster shows ``cpus`` CPUs (nodes join asynchronously)."""
+    deadline = time.monotonic() + timeout_s
+    while ray.cluster_resources().get("CPU", 0) < cpus:
+        if time.monotonic() > deadline:
+            raise ClusterError(f"the cluster has {ray.cluster_resources().get('CPU', 0):g} CPUs, not {cpus}, after {timeout_s:g} s")
+        time.sleep(0.2)
