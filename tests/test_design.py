@@ -70,7 +70,8 @@ def test_designs_run_in_parallel_processes_with_the_same_results():
 
 @pytest.mark.parametrize("args, needle", [
     (["--grid", "cad.Q=1,2"], "unknown parameter address"),
-    (["--grid", "motion.mu=0.5,0.9"], "varies cad.* parameters"),
+    (["--grid", "control.kp=5,9"], "each design's gains are tuned"),
+    (["--grid", "motor.model=nope"], "not in the motor catalogue"),
     (["--grid", "cad.L=0.04,x"], "comma-separated numbers"),
     (["--grid", "cad.L=0.04,0.04"], "given twice"),
     (["--laps", "0"], "outside"),

@@ -27,15 +27,18 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from lf_common.errors import LineFollowerError
+from tuner.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk
 from tuner.gradient import DescentOptions, descend
 from tuner.objective import LapObjective
 from tuner.space import SearchSpace
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
+from twin.motor_setup import catalogue_motor, motor_values
 
 log = logging.getLogger(__name__)
 
 PARENT_POLL_S = 0.5  # how often a worker checks that the study's process is still there [s]
+MOTOR_MODEL = "motor.model"
 DEFAULT_GRID: dict[str, tuple[float, ...]] = {"cad.L": (0.035, 0.045, 0.055), "cad.S": (0.04, 0.06, 0.08)}
 
 
@@ -43,7 +46,7 @@ DEFAULT_GRID: dict[str, tuple[float, ...]] = {"cad.L": (0.035, 0.045, 0.055), "c
 class DesignResult:
     """One design: its parameters, tuned gains and converged lap times, or why it failed."""
 
-    design: dict[str, float]
+    design: dict[str, float | str]  # a categorical parameter (motor.model) holds a name
     ok: bool
     error: str | None
     gains: dict[str, float]
@@ -57,7 +60,8 @@ class DesignResult:
 
     @property
     def label(self) -> str:
-        return ", ".join(f"{a.split('.')[-1]}={v * 1000:g} mm" if a.startswith("cad.") and a[-1] in "LSRd" else f"{a}={v:g}"
+        return ", ".join(f"{a.split('.')[-1]}={v}" if isinstance(v, str) else
+                         f"{a.split('.')[-1]}={v * 1000:g} mm" if a.startswith("cad.") and a[-1] in "LSRd" else f"{a}={v:g}"
                          for a, v in self.design.items())
 
     @property
@@ -76,10 +80,18 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
     t0 = time.perf_counter()
     try:
         twin = DigitalTwin(track=base["track"], track_metres_per_pixel=base.get("metres_per_pixel"))
-        twin.update({**base["values"], **design})
+        values = {**base["values"], **design}
+        twin.update({a: v for a, v in values.items() if a != MOTOR_MODEL})
+        if MOTOR_MODEL in values:  # a catalogue motor: its constants, and the firmware's full speed to match
+            supply = twin.space.get("motor.supply_voltage")
+            twin.update(motor_values(catalogue_motor(str(values[MOTOR_MODEL])), supply))
         twin.model()  # builds the robot now: a design that cannot be built fails here, with its reason
         space = SearchSpace(twin.space)
-        objective = LapObjective(twin, space, seed=0, nthread=1)
+        if base.get("robust"):
+            envelope, risk = Envelope.of(dict(ROBUST_AXES), list(range(ROBUST_SEEDS))), Risk(ROBUST_RISK)
+        else:
+            envelope, risk = None, Risk("mean")
+        objective = LapObjective(twin, space, seed=0, nthread=1, envelope=envelope, risk=risk)
         r = descend(objective, space.to_unit(space.start(twin.space)), DescentOptions(max_iter=max_iter))
         gains = space.assignments(objective.best.x)
         twin.update(gains)
@@ -154,12 +166,16 @@ def pareto(results: Sequence[DesignResult]) -> list[bool]:
 
 def trend(results: Sequence[DesignResult], address: str) -> str:
     """A plain statement of how the median converged lap time moves with one parameter (others averaged)."""
-    by: dict[float, list[float]] = {}
+    by: dict = {}
     for r in results:
         if r.ok and r.lap_times_s:
             by.setdefault(r.design[address], []).append(r.median_s)
     if len(by) < 2:
         return f"{address}: not enough completed designs to tell"
+    if any(isinstance(x, str) for x in by):  # categorical: no order to speak of, fastest first
+        ranked = sorted(by, key=lambda x: float(np.mean(by[x])))
+        values = ", ".join(f"{x} → {float(np.mean(by[x])):.3f} s" for x in ranked)
+        return f"{address}, fastest first: {values} (mean of medians over the other parameters)"
     xs = sorted(by)
     means = [float(np.mean(by[x])) for x in xs]
     steps = np.sign(np.diff(means))

@@ -24,7 +24,7 @@ from tuner.design import DesignResult  # noqa: E402
 
 
 def slug(r: DesignResult) -> str:
-    return "_".join(f"{a.replace('.', '-')}={v:g}" for a, v in r.design.items())
+    return "_".join(f"{a.replace('.', '-')}={v if isinstance(v, str) else format(v, 'g')}" for a, v in r.design.items())
 
 
 def box_chart(path: str, results: Sequence[DesignResult], title: str) -> None:

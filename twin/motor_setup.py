@@ -23,7 +23,7 @@ def motor_values(d: Datasheet, supply_voltage: float) -> dict[str, float]:
 
 def catalogue_motor(name: str) -> Datasheet:
     if name not in CATALOGUE:
-        raise TwinError(f"--motor {name}: not in the motor catalogue; choose one of: {', '.join(names())}")
+        raise TwinError(f"motor {name!r}: not in the motor catalogue (motors.catalogue); choose one of: {', '.join(names())}")
     return CATALOGUE[name]
 
 

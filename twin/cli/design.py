@@ -1,4 +1,4 @@
-"""``design``: a design study: rebuild, tune and race every design of a grid over cad.* parameters."""
+"""``design``: a design study: rebuild, tune and race every design of a grid over design parameters."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from twin.models import default_space
 from tuner.design import DEFAULT_GRID, grid, pareto, study, trend
 from tuner.design_report import write_report
 
-HELP = "design study: rebuild, tune and race every design of a grid over cad.* parameters"
+HELP = "design study: rebuild, tune and race every design of a grid over design parameters (cad.*, motor.model, …)"
 
 
 def add_parser(sub) -> None:
@@ -25,12 +25,14 @@ def add_parser(sub) -> None:
         "gains to --out-dir."))
     default = " ".join(f"{a}={','.join(f'{v:g}' for v in vs)}" for a, vs in DEFAULT_GRID.items())
     p.add_argument("--grid", action="append", metavar="ADDRESS=V1,V2,...",
-                   help=f"a cad.* parameter and its values, repeatable (default: {default})")
+                   help=f"a design parameter and its values, repeatable: cad.*, motor.model (catalogue names), or any "
+                   f"model-space address (default: {default})")
     p.add_argument("--param", dest="grid", action=o.deprecated(argparse._AppendAction, "--grid"), help=argparse.SUPPRESS)
     o.add_world(p, robot=False)
     p.add_argument("--set", action="append", metavar="ADDRESS=VALUE", help="a fixed model-space parameter, repeatable")
     p.add_argument("--laps", type=o.count_type, default=20, metavar="N", help="laps per design after tuning, one noise seed each")
     p.add_argument("--max-iter", type=o.count_type, default=30, metavar="N", help="tuning iteration cap per design")
+    p.add_argument("--robust", action="store_true", help="tune each design over the robust envelope (as tune --robust)")
     o.add_workers(p, "designs (processes)")
     p.add_argument("--cluster", metavar="auto|ray://HOST:PORT", help="run the designs as Ray tasks on a cluster "
                    "(pip install -e '.[cluster]'; auto: the cluster this machine joined with 'ray start'); results "
@@ -49,15 +51,21 @@ def run(args: argparse.Namespace) -> int:
     params = o.parse_grid(args.grid) if args.grid else dict(DEFAULT_GRID)
     space = default_space()
     for address in params:
-        space.parameter(address)  # an unknown address: one-line error
-        if not address.startswith("cad."):
-            raise TwinError(f"--grid {address}: a design study varies cad.* parameters (the robot's geometry)")
+        if address not in o.CATEGORICAL:
+            space.parameter(address)  # an unknown address: one-line error
+        if address.startswith("control."):
+            raise TwinError(f"--grid {address}: each design's gains are tuned (control.*); vary the robot, its motor "
+                            "or its world instead")
     fixed = o.parse_assignments(args.set)
-    space.update(fixed)  # fixed values are checked now: a bad --set is bad input, not a failing design
+    for address, check in o.CATEGORICAL.items():
+        if address in fixed:
+            check(fixed[address])  # an unknown name: one line that lists the choices
+    space.update({a: v for a, v in fixed.items() if a not in o.CATEGORICAL})  # checked now: bad input, not a failing design
     load_track(args.track, space.get("environment.line_width"), space.get("environment.texture_resolution"),
                args.metres_per_pixel)  # an unknown track or unreadable image: one-line error before any work
     designs = grid(params)
-    base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": {a: float(v) for a, v in fixed.items()}}
+    base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": {a: v if a in o.CATEGORICAL else float(v) for a, v in fixed.items()},
+            "robust": args.robust}
     from tqdm import tqdm
 
     t0 = time.perf_counter()

@@ -197,10 +197,18 @@ def parse_bounds(items: Sequence[str] | None, addresses: Sequence[str] | None = 
     return out
 
 
-def parse_grid(items: Sequence[str] | None, flag: str = "--grid") -> dict[str, tuple[float, ...]]:
-    """``["cad.L=0.035,0.045"]`` → {"cad.L": (0.035, 0.045)}."""
-    out: dict[str, tuple[float, ...]] = {}
+def parse_grid(items: Sequence[str] | None, flag: str = "--grid") -> dict[str, tuple]:
+    """``["cad.L=0.035,0.045"]`` → {"cad.L": (0.035, 0.045)}; a categorical address (``motor.model``) takes names."""
+    out: dict[str, tuple] = {}
     for address, text in parse_assignments(items, flag).items():
+        if address in CATEGORICAL:
+            names = tuple(v.strip() for v in str(text).split(","))
+            for name in names:
+                CATEGORICAL[address](name)  # an unknown name: one line that lists the choices
+            if len(set(names)) != len(names):
+                raise TwinError(f"{flag} {address}={text}: a value is given twice")
+            out[address] = names
+            continue
         try:
             values = tuple(float(v) for v in str(text).split(","))
         except ValueError:
@@ -274,9 +282,16 @@ def twin_from_args(args: argparse.Namespace, track: str | None = None) -> Digita
     if getattr(args, "params", None):
         changes.update(load_values(args.params, twin.space))
     changes.update(parse_assignments(getattr(args, "set", None)))
+    model = changes.pop(MOTOR_MODEL, None)
+    if model is not None and getattr(args, "motor", None) not in (None, model):
+        raise TwinError(f"--motor {args.motor} and --set {MOTOR_MODEL}={model}: two motors; give one")
     twin.update(changes)
-    _choose_motor(twin, getattr(args, "motor", None), changes)
+    _choose_motor(twin, getattr(args, "motor", None) or model, changes)
     return twin
+
+
+MOTOR_MODEL = "motor.model"  # categorical: a catalogue motor by name (what --motor NAME sets)
+CATEGORICAL = {MOTOR_MODEL: catalogue_motor}  # address → its check, which names the choices
 
 
 def _choose_motor(twin: DigitalTwin, name: str | None, changes: dict) -> None:
