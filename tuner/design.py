@@ -27,6 +27,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from lf_common.errors import LineFollowerError
+from tuner.design_evidence import evidence
 from tuner.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk
 from tuner.gradient import DescentOptions, descend
 from tuner.objective import LapObjective
@@ -57,6 +58,7 @@ class DesignResult:
     failed_laps: int
     mean_cross_track_m: float
     wall_s: float
+    evidence: dict = dataclasses.field(default_factory=dict)  # tuner.design_evidence, from one traced lap
 
     @property
     def label(self) -> str:
@@ -100,7 +102,8 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
         return DesignResult(
             design, True, None, gains, len(r.iterations), objective.laps, r.converged,
             tuple(float(e.lap_time_s) for e in done), len(evals) - len(done),
-            float(np.mean([e.mean_cross_track_m for e in done])) if done else math.nan, time.perf_counter() - t0)
+            float(np.mean([e.mean_cross_track_m for e in done])) if done else math.nan, time.perf_counter() - t0,
+            evidence(twin, seed=1))
     except LineFollowerError as e:
         return DesignResult(design, False, str(e), {}, 0, 0, False, (), 0, math.nan, time.perf_counter() - t0)
 

@@ -12,6 +12,7 @@ from twin.cli.output import Output
 from twin.environment import load_track
 from twin.errors import TwinError
 from twin.models import default_space
+from tuner.design_evidence import describe
 from tuner.design import DEFAULT_GRID, grid, pareto, study, trend
 from tuner.design_report import write_report
 
@@ -92,13 +93,14 @@ def run(args: argparse.Namespace) -> int:
                   "designs": [{"design": r.design, "ok": r.ok, "error": r.error,
                                "median_lap_time_s": r.median_s if r.ok else None, "laps_completed": len(r.lap_times_s),
                                "mean_cross_track_m": r.mean_cross_track_m if r.ok else None, "pareto": on,
-                               "gains": r.gains} for r, on in zip(results, front)]})
+                               "gains": r.gains, "evidence": r.evidence} for r, on in zip(results, front)]})
     for r, on in zip(results, front):
         if r.ok:
             t = sorted(r.lap_times_s)
             spread = f"{t[0]:.3f}–{t[-1]:.3f}" if t else "–"
             out.say(f"{r.label:28s} median {r.median_s:7.3f} s ({spread}, {len(t)}/{len(t) + r.failed_laps} laps), "
                     f"cross-track {r.mean_cross_track_m * 1000:.1f} mm{'  pareto' if on else ''}")
+            out.say(f"{'':28s} {describe(r.evidence)}")
         else:
             out.say(f"{r.label:28s} failed: {r.error}")
     for t in trends:
