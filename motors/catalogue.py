@@ -1,16 +1,47 @@
-"""Named gearmotors with their datasheet figures, for ``--motor NAME`` and the choice of a motor for a robot
-(:mod:`motors.choice`). Figures at the gearbox output, at the rated voltage; sources per entry.
+"""Named gearmotors with their datasheet figures, for ``--motor NAME``, ``--grid motor.model=A,B`` and the choice
+of a motor for a robot (:mod:`motors.choice`). Figures at the gearbox output, at the rated 6 V.
 
-Inductance and rotor inertia are not published for these motors: each entry uses the default motor's
-assumptions (0.5 mH, 2e-9 kg·m², typical of 10 mm-class brushed motors), as :data:`POLOLU_MP_6V_30_1` does.
+Pololu Micro Metal Gearmotors, current generation, with low-, medium- and high-power windings (LP, MP, HP: precious
+metal brushes; HPCB: carbon brushes, not the same figures as HP). Each entry cites where its figures come from:
+the LP rows are Pololu's datasheet (Rev 2.0, May 2018); the MP, HP and HPCB rows are Pololu's product and specs
+pages as quoted by third-party copies (this machine cannot reach pololu.com), so they are as good as those copies.
+Left out: LP 10:1 (its printed stall torque × no-load speed exceeds U × I_stall, which no DC motor can do; the
+datasheet row has no column header there), and rows whose speed, stall torque or stall current were not found
+(HP 10:1, 75:1, 150:1; MP 10:1, 150:1; HPCB 100:1). A missing no-load current is None (it is informative only).
+
+Inductance and rotor inertia are not published: every entry uses the default motor's assumptions (0.5 mH,
+2e-9 kg·m², typical of 10 mm-class brushed motors), as :data:`POLOLU_MP_6V_30_1` does.
 """
 
 from __future__ import annotations
 
-from motors.datasheet import POLOLU_MP_6V_30_1, Datasheet
+from motors.datasheet import POLOLU_MP_6V_30_1, RPM, Datasheet
+
+KG_MM = 9.80665e-3  # [N·m] per [kg·mm]
+
+
+def _pololu(gear: float, rpm: float, no_load_a: float | None, stall_kg_mm: float, stall_a: float, source: str) -> Datasheet:
+    return Datasheet(voltage=6.0, stall_torque=stall_kg_mm * KG_MM, stall_current=stall_a, no_load_speed=rpm * RPM,
+                     no_load_current=no_load_a, gear=gear, inductance=POLOLU_MP_6V_30_1.inductance,
+                     rotor_inertia=POLOLU_MP_6V_30_1.rotor_inertia, source=source)
+
 
 CATALOGUE: dict[str, Datasheet] = {
-    "pololu-mp-6v-30": POLOLU_MP_6V_30_1,
+    "pololu-mp-6v-30": POLOLU_MP_6V_30_1,  # the default robot's motor (3pi+ 32U4 Standard Edition)
+    "pololu-lp-6v-30": _pololu(29.86, 450, 0.02, 2.9, 0.36, "LP 6V 30:1 (#993); Pololu Micro Metal Gearmotors datasheet Rev 2.0 (May 2018), performance summary"),
+    "pololu-lp-6v-50": _pololu(51.45, 270, 0.02, 4.4, 0.36, "LP 6V 50:1 (#1098); Pololu Micro Metal Gearmotors datasheet Rev 2.0 (May 2018), performance summary"),
+    "pololu-lp-6v-75": _pololu(75.81, 180, 0.02, 6.4, 0.36, "LP 6V 75:1 (#2360); Pololu Micro Metal Gearmotors datasheet Rev 2.0 (May 2018), performance summary"),
+    "pololu-lp-6v-100": _pololu(100.37, 130, 0.02, 7.4, 0.36, "LP 6V 100:1 (#992); Pololu Micro Metal Gearmotors datasheet Rev 2.0 (May 2018), performance summary"),
+    "pololu-lp-6v-150": _pololu(150.58, 90, 0.02, 11, 0.36, "LP 6V 150:1 (#1097); Pololu Micro Metal Gearmotors datasheet Rev 2.0 (May 2018), performance summary"),
+    "pololu-mp-6v-50": _pololu(51.45, 420, 0.07, 5.4, 0.67, "MP 6V 50:1 (#2365); https://www.pololu.com/product/2365/specs, as quoted by a third-party copy (not checked against pololu.com here)"),
+    "pololu-mp-6v-75": _pololu(75.81, 290, 0.07, 7.8, 0.67, "MP 6V 75:1 (#5137); https://www.pololu.com/product/5137, as quoted by a third-party copy (not checked against pololu.com here)"),
+    "pololu-mp-6v-100": _pololu(100.37, 220, 0.07, 9.4, 0.67, "MP 6V 100:1 (#2367); https://www.pololu.com/product/2367/specs, as quoted by a third-party copy (not checked against pololu.com here)"),
+    "pololu-hp-6v-30": _pololu(29.86, 1000, 0.1, 5.7, 1.6, "HP 6V 30:1 (#2212); https://www.pololu.com/category/60/micro-metal-gearmotors, as quoted by a third-party copy (not checked against pololu.com here)"),
+    "pololu-hp-6v-50": _pololu(51.45, 590, None, 8.6, 1.6, "HP 6V 50:1 (#998); https://www.pololu.com/category/60/micro-metal-gearmotors, as quoted by a third-party copy (not checked against pololu.com here)"),
+    "pololu-hp-6v-100": _pololu(100.37, 310, None, 17, 1.6, "HP 6V 100:1 (#1101); https://www.pololu.com/category/60/micro-metal-gearmotors, as quoted by a third-party copy (not checked against pololu.com here)"),
+    "pololu-hpcb-6v-30": _pololu(29.86, 1100, 0.15, 4.5, 1.5, "HPCB 6V 30:1 (#3072); https://www.pololu.com/product/3072/specs, as quoted by a third-party copy (not checked against pololu.com here)"),
+    "pololu-hpcb-6v-50": _pololu(51.45, 650, 0.15, 7.4, 1.5, "HPCB 6V 50:1 (#3063); https://www.pololu.com/file/0J1487/pololu-micro-metal-gearmotors-rev-6-2.pdf, as quoted by a third-party copy (not checked against pololu.com here)"),
+    "pololu-hpcb-6v-75": _pololu(75.81, 430, 0.15, 11, 1.5, "HPCB 6V 75:1 (#3074); https://www.pololu.com/product/3074/specs, as quoted by a third-party copy (not checked against pololu.com here)"),
 }
 
 

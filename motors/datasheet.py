@@ -33,7 +33,7 @@ class Datasheet:
       stall_torque: output stall torque in [N·m].
       stall_current: stall current in [A].
       no_load_speed: output no-load speed in [rad/s].
-      no_load_current: no-load current in [A] (informative only, see module docstring).
+      no_load_current: no-load current in [A], or None where not published (informative only, see module docstring).
       gear: gearbox ratio [-].
       inductance: winding inductance in [H].
       rotor_inertia: rotor inertia in [kg·m²].
@@ -44,7 +44,7 @@ class Datasheet:
     stall_torque: float
     stall_current: float
     no_load_speed: float
-    no_load_current: float
+    no_load_current: float | None
     gear: float
     inductance: float
     rotor_inertia: float
@@ -52,7 +52,7 @@ class Datasheet:
 
     def __post_init__(self) -> None:
         for field in dataclasses.fields(self):
-            if field.name == "source":
+            if field.name == "source" or (field.name == "no_load_current" and getattr(self, field.name) is None):
                 continue
             value = getattr(self, field.name)
             if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:

@@ -91,3 +91,22 @@ def test_json_output_has_null_for_missing_figures():
                                 "laps": [1.0, float("-inf")], "ci": (0.5, float("nan"))}), allow_nan=False)
     assert json.loads(out) == {"median": None, "se": None, "note": "NaN-free Infinity", "laps": [1.0, None],
                                "ci": [0.5, None]}
+
+
+def test_a_categorical_study_ranks_motors_as_its_evidence_explains(tmp_path, capsys):
+    """Two motors × two wheel bases: the 30:1 LP motor (450 rpm) is slower than the MP (720 rpm) at each L, the
+    report ranks MP first, and its evidence says why: both run at their voltage limit most of the lap
+    (speed-limited), and the LP robot's mean speed is lower by about the ratio of no-load speeds."""
+    code = main(["design", "--track", "oval", "--grid", "motor.model=pololu-mp-6v-30,pololu-lp-6v-30",
+                 "--grid", "cad.L=0.035,0.055", "--laps", "2", "--max-iter", "4", "--out-dir", str(tmp_path / "d"),
+                 "--json", "-q"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0
+    by = {(d["design"]["motor.model"], d["design"]["cad.L"]): d for d in doc["designs"]}
+    for L in (0.035, 0.055):
+        mp, lp = by[("pololu-mp-6v-30", L)], by[("pololu-lp-6v-30", L)]
+        assert lp["median_lap_time_s"] > mp["median_lap_time_s"]
+        assert mp["evidence"]["at_voltage_limit"] > 0.5 and lp["evidence"]["at_voltage_limit"] > 0.5
+        ratio = lp["evidence"]["mean_speed_mps"] / mp["evidence"]["mean_speed_mps"]
+        assert ratio == pytest.approx(450 / 720, rel=0.15)
+    assert doc["trends"][0].startswith("motor.model, fastest first: pololu-mp-6v-30")

@@ -89,3 +89,49 @@ def test_bad_constants_are_refused_by_name(field, value):
 def test_inconsistent_datasheet_is_refused():
     with pytest.raises(MotorError, match="no ideal DC motor"):
         Datasheet(6.0, 1.0, 0.1, 100.0, 0.01, 30.0, 0.0, 0.0)
+
+
+# --- the catalogue ---------------------------------------------------------------------------------------------
+
+# datasheet figures as the cited sources print them: (no-load rpm, stall torque kg·mm, stall current A)
+PRINTED = {
+    "pololu-lp-6v-30": (450, 2.9, 0.36), "pololu-lp-6v-100": (130, 7.4, 0.36),  # datasheet Rev 2.0, p. 1
+    "pololu-mp-6v-30": (720, 3.3, 0.67), "pololu-mp-6v-50": (420, 5.4, 0.67),  # product pages #2364 (3pi+ guide), #2365
+    "pololu-hp-6v-30": (1000, 5.7, 1.6), "pololu-hpcb-6v-75": (430, 11, 1.5),
+}
+# maximum output power the sources print [W]: a linear DC motor gives τ_stall·Ω_0/4 at half its no-load speed
+PRINTED_MAX_POWER = {"pololu-lp-6v-30": 0.31, "pololu-lp-6v-50": 0.29, "pololu-lp-6v-75": 0.29,
+                     "pololu-lp-6v-100": 0.25, "pololu-lp-6v-150": 0.25, "pololu-mp-6v-50": 0.55,
+                     "pololu-hpcb-6v-75": 1.3}
+
+
+def test_catalogue_figures_are_the_datasheets():
+    from motors.catalogue import CATALOGUE
+    from motors.datasheet import RPM
+
+    for name, (rpm, kg_mm, amps) in PRINTED.items():
+        d = CATALOGUE[name]
+        assert d.no_load_speed == pytest.approx(rpm * RPM, rel=1e-12)
+        assert d.stall_torque == pytest.approx(kg_mm * 9.80665e-3, rel=1e-12)
+        assert d.stall_current == amps and d.voltage == 6.0 and d.source
+
+
+def test_catalogue_max_power_matches_the_printed_column():
+    """An independent column: the printed maximum power against τ_stall·Ω_0/4 from the speed and torque, 12 %."""
+    from motors.catalogue import CATALOGUE
+
+    for name, watts in PRINTED_MAX_POWER.items():
+        d = CATALOGUE[name]
+        assert d.stall_torque * d.no_load_speed / 4 == pytest.approx(watts, rel=0.12), name
+
+
+def test_every_catalogue_motor_fits_the_model_space_and_its_figures():
+    from motors.catalogue import CATALOGUE
+    from twin.models import default_space
+
+    space = default_space()
+    for name, d in CATALOGUE.items():
+        c = d.constants()
+        assert c.stall_torque_wheel(d.voltage) == pytest.approx(d.stall_torque, rel=1e-9), name
+        assert c.no_load_speed_wheel(d.voltage) == pytest.approx(d.no_load_speed, rel=1e-9), name
+        space.update({"motor.R_M": c.R_M, "motor.K": c.K, "motor.b_M": c.b_M, "motor.gear": c.gear})

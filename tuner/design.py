@@ -31,7 +31,7 @@ from tuner.design_evidence import evidence
 from tuner.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk
 from tuner.gradient import DescentOptions, descend
 from tuner.objective import LapObjective
-from tuner.space import SearchSpace
+from tuner.space import SearchSpace, robot_bounds
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
 from twin.motor_setup import catalogue_motor, motor_values
@@ -88,7 +88,7 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
             supply = twin.space.get("motor.supply_voltage")
             twin.update(motor_values(catalogue_motor(str(values[MOTOR_MODEL])), supply))
         twin.model()  # builds the robot now: a design that cannot be built fails here, with its reason
-        space = SearchSpace(twin.space)
+        space = SearchSpace(twin.space, (), robot_bounds(twin))  # bounds that follow the design's motor and S
         if base.get("robust"):
             envelope, risk = Envelope.of(dict(ROBUST_AXES), list(range(ROBUST_SEEDS))), Risk(ROBUST_RISK)
         else:

@@ -33,18 +33,18 @@ REFERENCE_S = 0.040  # [m]
 
 
 def robot_bounds(twin) -> dict[str, tuple[float, float]]:
-    """Default search bounds for the twin's robot. The generated robot gets :data:`DEFAULT_BOUNDS`; a robot from a
-    description gets them scaled to it: speeds (v_max, K_B) by its top speed v_top (the firmware's full wheel
-    speed × wheel radius) against the reference robot's, and K_P, K_I, K_D by v_top · S: on the same track a
-    faster robot needs proportionally faster turns, and an array further ahead sees a smaller line angle
+    """Default search bounds for the twin's robot and motor: :data:`DEFAULT_BOUNDS`, set for the 3pi-class default
+    robot, scaled to this one: speeds (v_max, K_B) by its top speed v_top (the firmware's full wheel speed ×
+    wheel radius) against the reference robot's, and K_P, K_I, K_D by v_top · S: on the same track a faster
+    robot needs proportionally faster turns, and an array further ahead sees a smaller line angle
     (e ≈ offset / S) for the same offset from the line. The wheel base needs no scaling: the firmware turns ω
-    into wheel speeds with the robot's own L."""
-    if twin.robot_urdf is None:
-        return dict(DEFAULT_BOUNDS)
+    into wheel speeds with the robot's own L. The default robot gets :data:`DEFAULT_BOUNDS` exactly."""
     twin.model()
     v_top = twin.space.get("control.full_speed") * twin.info.wheel_radius
     speed = v_top / REFERENCE_TOP_SPEED
     turn = speed * twin.sensor_distance / REFERENCE_S
+    if abs(speed - 1) < 1e-3 and abs(turn - 1) < 1e-3:
+        return dict(DEFAULT_BOUNDS)
     scale = {"control.v_max": speed, "control.kb": speed, "control.kp": turn, "control.ki": turn, "control.kd": turn}
     out = {}
     for a, (lo, hi) in DEFAULT_BOUNDS.items():

@@ -132,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     twin = o.twin_from_args(args)
     searched = args.param or list(DEFAULT_BOUNDS)
     derived = {a: b for a, b in robot_bounds(twin).items() if a in searched}
-    if twin.robot_urdf is not None:
+    if derived != {a: b for a, b in DEFAULT_BOUNDS.items() if a in searched}:
         out.say("search bounds for this robot: " + ", ".join(f"{a}=[{lo:.3g}, {hi:.3g}]" for a, (lo, hi) in derived.items()))
     space = SearchSpace(twin.space, args.param or (), {**derived, **o.parse_bounds(args.bounds)})
     x0 = space.start(twin.space)
