@@ -44,6 +44,12 @@ CATALOGUE: dict[str, Datasheet] = {
     "pololu-hpcb-6v-75": _pololu(75.81, 430, 0.15, 11, 1.5, "HPCB 6V 75:1 (#3074); https://www.pololu.com/product/3074/specs, as quoted by a third-party copy (not checked against pololu.com here)"),
 }
 
+# Pololu's 3pi+ 32U4 editions differ in their motors (3pi+ 32U4 user's guide, section 1): Turtle 75:1 LP,
+# Standard 30:1 MP, Hyper 15:1 HPCB. Named presets for the first two; the Hyper's 15:1 HPCB figures were not
+# found (see the module docstring), so it has none.
+EDITIONS: dict[str, str] = {"3pi+-turtle": "pololu-lp-6v-75", "3pi+-standard": "pololu-mp-6v-30"}
+CATALOGUE.update({edition: CATALOGUE[motor] for edition, motor in EDITIONS.items()})
+
 
 def names() -> list[str]:
     return sorted(CATALOGUE)

@@ -4,8 +4,10 @@ A line follower accelerates and turns for most of its lap, so a motor fits when,
 DC motor gives its most power), the two wheels can still push the robot at ``MIN_PUSH_G`` (0.5 g):
 2 · ½ τ_stall / R ≥ 0.5 · m · g; and when its no-load speed on these wheels is a line follower's
 (≤ ``MAX_TOP_SPEED``, 2.5 m/s: faster, a reflectance array at its usual look-ahead cannot see a bend coming).
-Of the motors that fit, the fastest wins (then the least stall current). The default 3pi-class robot's own
-motor has 2 · ½ · 0.032 / 0.016 = 2.0 N for 0.21 kg: about 1 g; it fits its robot with a margin of 2.
+Of the motors that fit, the one whose top speed is nearest ``TARGET_TOP_SPEED`` wins (then the least stall
+current): the 3pi-class speed that the default gains, the calibration turn and the tuner's reference bounds were
+made for; a faster motor is the user's call (``--motor``). The default robot's own motor has
+2 · ½ · 0.032 / 0.016 = 2.0 N for 0.21 kg (about 1 g, a margin of 2) at 1.21 m/s: it picks itself.
 
 When none fits (a robot of kilograms on micro gearmotors), a motor is sized for the robot instead, with the
 default motor's character: the stall torque that gives the default robot's margin (τ_stall = m·g·R per motor),
@@ -24,6 +26,7 @@ G = 9.80665  # [m/s²]
 MIN_PUSH_G = 0.5  # [g] at half stall torque
 MAX_TOP_SPEED = 2.5  # [m/s]
 SIZED_TOP_SPEED = 1.0  # [m/s]
+TARGET_TOP_SPEED = 1.206  # [m/s] the default robot's: 720 rpm × 16 mm
 REF_MASS, REF_WHEEL = 0.21, 0.016  # [kg], [m]: the default robot the reference motor drives
 
 
@@ -47,13 +50,14 @@ def top_speed(d: Datasheet, wheel_radius_m: float, voltage: float) -> float:
 
 def choose(catalogue: dict[str, Datasheet], mass_kg: float, wheel_radius_m: float, voltage: float) -> MotorChoice:
     """The catalogue motor that fits (see the module docstring), else one sized for the robot."""
-    fits = [(top_speed(d, wheel_radius_m, voltage), -d.stall_current, name) for name, d in catalogue.items()
+    fits = [(abs(top_speed(d, wheel_radius_m, voltage) - TARGET_TOP_SPEED), d.stall_current, name.startswith("3pi"), name)
+            for name, d in catalogue.items()
             if push_g(d, mass_kg, wheel_radius_m, voltage) >= MIN_PUSH_G
             and top_speed(d, wheel_radius_m, voltage) <= MAX_TOP_SPEED]
     if fits:
-        _, _, name = max(fits)
+        name = min(fits)[-1]  # (an edition's alias only where no motor name ties with it)
         d = catalogue[name]
-        return MotorChoice(name, d, f"the fastest catalogue motor that fits {mass_kg:.3g} kg on {wheel_radius_m * 1000:.3g} mm "
+        return MotorChoice(name, d, f"the catalogue motor nearest {TARGET_TOP_SPEED:g} m/s that fits {mass_kg:.3g} kg on {wheel_radius_m * 1000:.3g} mm "
                            f"wheels: pushes {push_g(d, mass_kg, wheel_radius_m, voltage):.2f} g at half stall torque, "
                            f"top speed {top_speed(d, wheel_radius_m, voltage):.2f} m/s at {voltage:g} V")
     d = sized(mass_kg, wheel_radius_m, voltage)

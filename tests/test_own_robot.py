@@ -205,8 +205,12 @@ def test_motor_choice_by_hand():
     from motors.catalogue import CATALOGUE
     from motors.choice import choose
 
-    c = choose(CATALOGUE, 0.21, 0.016, 6.0)
-    assert c.name == "pololu-mp-6v-30" and "0.98 g" in c.reason
+    from motors.choice import push_g, top_speed
+
+    assert push_g(CATALOGUE["pololu-mp-6v-30"], 0.21, 0.016, 6.0) == pytest.approx(0.98, abs=0.005)
+    c = choose(CATALOGUE, 0.21, 0.016, 6.0)  # its own motor: 720 rpm × 16 mm = 1.206 m/s, the target itself
+    assert c.name == "pololu-mp-6v-30"
+    assert top_speed(c.datasheet, 0.016, 6.0) == pytest.approx(1.206, abs=1e-3)
     heavy = choose(CATALOGUE, 10.0, 0.033, 6.0)
     assert heavy.name == "sized"
     assert heavy.datasheet.stall_torque == pytest.approx(10.0 * 9.80665 * 0.033, rel=1e-12)
@@ -219,7 +223,10 @@ def test_motor_choice_by_hand():
 def test_a_heavy_robot_gets_a_motor_that_moves_it_and_says_so(tmp_path, third_party_urdf):
     r = run("lap", "--robot", third_party_urdf, "--track", "oval", "--json")
     assert r.returncode in (0, 1), r.stderr
-    assert "motor: sized: no catalogue motor fits 0.869 kg on 33 mm wheels" in r.stderr
+    # hand: 100:1 HP, 17 kg·mm = 0.1667 N·m → 2·½·0.1667 / 0.033 m / (0.869 kg · g) = 0.59 g at 310 rpm × 33 mm =
+    # 1.07 m/s; the 50:1 HP pushes only 0.30 g, the 100:1 MP 0.33 g
+    assert "motor: pololu-hp-6v-100: the catalogue motor nearest 1.206 m/s that fits 0.869 kg on 33 mm wheels: " \
+           "pushes 0.59 g" in r.stderr, r.stderr
     assert json.loads(r.stdout)["distance_m"] > 1.0  # it drives (the 3pi's motor barely moved it)
 
 

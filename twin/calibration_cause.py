@@ -4,8 +4,9 @@ Checked in order, each from the twin's own models: the array too high for the se
 from the ground (:mod:`line_sensor.working_range`); a turn too short for the sensor to reach the line (turning
 in place by θ about the axle brings a sensor at lateral offset y and distance S over the line's centre at
 θ = atan(|y| / S), and over its far edge at atan((|y| + w/2) / S)); else a turn that fell short of its plan,
-which is timed for the firmware's expected wheel speed (``control.cal_duty`` × ``control.full_speed``): motors
-too weak to reach that speed with this robot.
+which is timed for the firmware's expected wheel speed (``control.cal_duty`` × ``control.full_speed``): either
+so fast that the array turns more than half the line's angular width (w / S) between two reads and can miss it,
+or (the rest) motors too weak to reach that speed with this robot.
 """
 
 from __future__ import annotations
@@ -31,6 +32,11 @@ def calibration_cause(twin, params, sensor, min_span_us: float) -> str:
     if needed > params.cal_sweep_rad:
         return (f"turn too short: the outer sensors pass the whole line only at ±{needed:.2f} rad, the turn goes "
                 f"±{params.cal_sweep_rad:g} rad; raise control.cal_sweep")
+    omega = params.cal_duty * params.wheel_speed_max * params.wheel_radius_m / params.half_track_m  # [rad/s] planned
+    step, line = omega * params.dt_s, width / params.sensor_distance_m  # [rad] per read, the line's angular width
+    if step > line / 2:
+        return (f"turn too fast: the array turns {step:.3f} rad between reads, more than half the line's width as "
+                f"the sensors see it ({line:.3f} rad), so reads can miss the line; lower control.cal_duty")
     return (f"motor too weak: the turn is planned for wheels at control.cal_duty {params.cal_duty:g} × "
             f"control.full_speed {params.wheel_speed_max:.3g} rad/s, which these motors do not reach with this robot; "
             "raise control.cal_duty, or choose a stronger motor (--motor, --set motor.*)")
