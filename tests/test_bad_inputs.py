@@ -149,7 +149,8 @@ CASES = [
     ("design --out-dir {user.json}", "is a file"),
     ("design --out-dir {missing_dir}/study", "does not exist"),
     ("design --grid cad.L=0.04,0.04", "given twice"),
-    ("design --grid motion.mu=0.5,0.9", "cad.*"),
+    ("design --grid control.kp=5,9", "gains are tuned"),
+    ("design --grid motor.model=nope", "not in the motor catalogue"),
     # record, emulate, live
     ("record --out {dir}", "is a folder"),
     ("emulate --tcp 99999", "outside"),
