@@ -299,18 +299,29 @@ def replay_log(path: str, live: LiveTwin, stats: LinkStats, realign: bool = Fals
 
 def _replay_line(raw: bytes | None, live: LiveTwin, stats: LinkStats, realign: bool) -> None:
     stats.lines += 1
+    if raw is None:  # longer than any wire line, or cut off
+        stats.corrupted += 1
+        return
+    # as fast as the file goes, each lap waits for the alignment the previous ones asked for
+    feed_line(raw, live, stats, replay=not realign, before_lap=live.finish if realign else None)
+
+
+def feed_line(raw: bytes, live: LiveTwin, stats: LinkStats, replay: bool = False,
+              before_lap: Callable[[], None] | None = None) -> bool:
+    """One received wire line → the live twin (a corrupted one only counted); True for a lap event (LAP, FAIL).
+    ``before_lap`` runs just before a lap event is fed."""
     try:
-        if raw is None:
-            raise WireError("line too long or cut off")
         rec = decode(raw)
     except WireError:
         stats.corrupted += 1
-        return
-    if isinstance(rec, Event) and rec.event in ("LAP", "FAIL"):
+        return False
+    lap_event = isinstance(rec, Event) and rec.event in ("LAP", "FAIL")
+    if lap_event:
         stats.robot_laps += 1
-        if realign:
-            live.finish()  # as fast as the file goes, each lap sees the alignment the previous ones asked for
-    live.feed(rec, replay=not realign)
+        if before_lap is not None:
+            before_lap()
+    live.feed(rec, replay=replay)
+    return lap_event
 
 
 def resume(live: LiveTwin, log_path: str) -> int:

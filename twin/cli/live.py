@@ -13,9 +13,8 @@ from twin.cli import options as o
 from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
 from twin.errors import TwinError
-from tuner.live import LiveOptions, LiveTwin, replay_log, resume
+from tuner.live import LiveOptions, LiveTwin, feed_line, replay_log, resume
 from twin.link import FSYNC_INTERVAL_S, RETRY_S, DurableLog, LinkGaveUp, LinkStats, check_port, read_link
-from twin.wire import Event, WireError, decode
 from tuner.recording import LiveRecording
 
 HELP = "run the twin beside the robot: compare laps, re-align when they disagree"
@@ -137,7 +136,7 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output) -> tuple[dict, 
         stop = _stopper(args, live, start_laps, signalled)
         with _stop_on_signals(signalled):  # a clean stop: the log synced, the state saved, the summary printed
             try:
-                read_link(args.port, log_file, _line_reader(live, stats), lambda: live.feed(None), stats, stop,
+                read_link(args.port, log_file, lambda raw: feed_line(raw, live, stats), lambda: live.feed(None), stats, stop,
                           None if args.retry_forever else args.retry)
             except LinkGaveUp as e:
                 gave_up = str(e)
@@ -176,23 +175,6 @@ def _summary(args, live: LiveTwin, stats: LinkStats, start_laps: int, state: str
             "implausible": implausible, "value": {address: live.twin.space.get(address)},
             "alignments": live.alignments, "log": os.path.abspath(args.log), "state": os.path.abspath(state),
             "gave_up": gave_up, "stopped_by": signal.Signals(signalled[0]).name if signalled else None}
-
-
-def _line_reader(live: LiveTwin, stats: LinkStats):
-    """A received line → the live twin; True for a lap event (the link then fsyncs the log)."""
-
-    def on_line(raw: bytes) -> bool:
-        try:
-            rec = decode(raw)
-        except WireError:
-            stats.corrupted += 1
-            return False
-        lap_event = isinstance(rec, Event) and rec.event in ("LAP", "FAIL")
-        stats.robot_laps += lap_event
-        live.feed(rec)
-        return lap_event
-
-    return on_line
 
 
 @contextlib.contextmanager
