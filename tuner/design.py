@@ -34,12 +34,11 @@ from tuner.objective import LapObjective
 from tuner.space import SearchSpace, robot_bounds
 from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
-from twin.motor_setup import catalogue_motor, motor_values
+from twin.motor_setup import MOTOR_MODEL, catalogue_motor, use_motor
 
 log = logging.getLogger(__name__)
 
 PARENT_POLL_S = 0.5  # how often a worker checks that the study's process is still there [s]
-MOTOR_MODEL = "motor.model"
 DEFAULT_GRID: dict[str, tuple[float, ...]] = {"cad.L": (0.035, 0.045, 0.055), "cad.S": (0.04, 0.06, 0.08)}
 
 
@@ -85,8 +84,7 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
         values = {**base["values"], **design}
         twin.update({a: v for a, v in values.items() if a != MOTOR_MODEL})
         if MOTOR_MODEL in values:  # a catalogue motor: its constants, and the firmware's full speed to match
-            supply = twin.space.get("motor.supply_voltage")
-            twin.update(motor_values(catalogue_motor(str(values[MOTOR_MODEL])), supply))
+            use_motor(twin, catalogue_motor(str(values[MOTOR_MODEL])))
         twin.model()  # builds the robot now: a design that cannot be built fails here, with its reason
         space = SearchSpace(twin.space, (), robot_bounds(twin))  # bounds that follow the design's motor and S
         if base.get("robust"):

@@ -13,6 +13,8 @@ from twin.errors import TwinError
 
 log = logging.getLogger(__name__)
 
+MOTOR_MODEL = "motor.model"  # categorical address: a catalogue motor by name (what --motor NAME sets)
+
 
 def motor_values(d: Datasheet, supply_voltage: float) -> dict[str, float]:
     """``motor.*`` constants of a datasheet, and ``control.full_speed`` at ``supply_voltage`` [V]."""
@@ -32,3 +34,10 @@ def motor_for_robot(twin, supply_voltage: float) -> MotorChoice:
     model = twin.model()
     mass = float(model.body_subtreemass[model.body(twin.info.root_body).id])
     return choose(CATALOGUE, mass, twin.info.wheel_radius, supply_voltage)
+
+
+def use_motor(twin, d: Datasheet, keep=()) -> None:
+    """Give the twin motor ``d`` at its supply voltage, except for the addresses in ``keep`` (values the user
+    gave, which win)."""
+    supply = twin.space.get("motor.supply_voltage")
+    twin.update({a: v for a, v in motor_values(d, supply).items() if a not in keep})

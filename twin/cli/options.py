@@ -18,7 +18,7 @@ from mjcf.robot_config import RobotConfig
 from twin.cli.guard import fail
 from twin.digital_twin import DigitalTwin
 from twin.errors import TwinError
-from twin.motor_setup import catalogue_motor, motor_for_robot, motor_values
+from twin.motor_setup import MOTOR_MODEL, catalogue_motor, motor_for_robot, use_motor
 from twin.parameter_files import load_gains, load_values
 
 MAX_SEED = 2**64 - 1
@@ -290,7 +290,6 @@ def twin_from_args(args: argparse.Namespace, track: str | None = None) -> Digita
     return twin
 
 
-MOTOR_MODEL = "motor.model"  # categorical: a catalogue motor by name (what --motor NAME sets)
 CATEGORICAL = {MOTOR_MODEL: catalogue_motor}  # address → its check, which names the choices
 
 
@@ -300,12 +299,10 @@ def _choose_motor(twin: DigitalTwin, name: str | None, changes: dict) -> None:
     if name is None and (twin.robot_urdf is None or any(a.startswith("motor.") and a != "motor.supply_voltage"
                                                         for a in changes)):
         return
-    supply = twin.space.get("motor.supply_voltage")
     if name is not None:
         datasheet, why = catalogue_motor(name), f"--motor {name}"
     else:
-        choice = motor_for_robot(twin, supply)
+        choice = motor_for_robot(twin, twin.space.get("motor.supply_voltage"))
         datasheet, why = choice.datasheet, f"{choice.name}: {choice.reason}"
-    values = {a: v for a, v in motor_values(datasheet, supply).items() if a not in changes}
-    twin.update(values)
+    use_motor(twin, datasheet, keep=changes)
     log.warning("motor: %s", why)
