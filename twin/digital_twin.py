@@ -229,10 +229,7 @@ class DigitalTwin:
 
     def sensor_height(self) -> float:
         """The line array's height above the floor at the start pose [m]."""
-        data = mujoco.MjData(self._model)
-        mujoco.mj_resetDataKeyframe(self._model, data, 0)
-        mujoco.mj_kinematics(self._model, data)
-        return float(data.site(SENSOR_SITE).xpos[2])
+        return float(_at_start(self._model).site(SENSOR_SITE).xpos[2])
 
     def _check_sensor_height(self) -> None:
         """A description's line array must sit where the sensor model can tell the line from the ground."""
@@ -304,11 +301,17 @@ def _hold_texture(model: mujoco.MjModel, texture: FloorTexture) -> None:
     model.tex_data[adr: adr + h * w * n] = np.repeat(texture.grey[:, :, None], n, axis=2).ravel()
 
 
-def _sensor_distance(model: mujoco.MjModel, yaw: float) -> float:
-    """S: how far the sensor array sits ahead of the axle centre along the heading, at the start pose [m]."""
+def _at_start(model: mujoco.MjModel) -> mujoco.MjData:
+    """The world's kinematics at its start keyframe (the robot on the start line)."""
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     mujoco.mj_kinematics(model, data)
+    return data
+
+
+def _sensor_distance(model: mujoco.MjModel, yaw: float) -> float:
+    """S: how far the sensor array sits ahead of the axle centre along the heading, at the start pose [m]."""
+    data = _at_start(model)
     ahead = data.site(SENSOR_SITE).xpos[:2] - data.site(AXLE_SITE).xpos[:2]
     s = float(ahead @ np.array([np.cos(yaw), np.sin(yaw)]))
     if s <= 0.005:
