@@ -83,8 +83,21 @@ def read_description(path: str, xacro_args: tuple[tuple[str, str], ...] = (),
         if xacro_args:
             raise MjcfError(f"{path}: --xacro-arg is given but the description is not xacro")
         xml = raw
-    _refuse_unexpanded(path, xml)
-    return Description(os.path.abspath(path), xml, folder, drive_joints(path, xml), tuple(notes))
+    root = _parse(path, xml)
+    _refuse_unexpanded(path, root)
+    return Description(os.path.abspath(path), xml, folder, drive_joints(root), tuple(notes))
+
+
+def _parse(path: str, xml: bytes) -> ET.Element:
+    """The description's root element; yourdfpy silently "recovers" broken XML, so it is refused here with the
+    parser's line and column."""
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError as e:
+        raise MjcfError(f"{path}: not a well-formed URDF ({e})") from None
+    if root.tag != "robot":
+        raise MjcfError(f"{path}: root element is <{root.tag}>, expected <robot>")
+    return root
 
 
 def _uses_xacro(raw: bytes) -> bool:
@@ -92,11 +105,7 @@ def _uses_xacro(raw: bytes) -> bool:
     return XACRO_NS.encode() in raw[:4096] or b"<xacro:" in raw
 
 
-def _refuse_unexpanded(path: str, xml: bytes) -> None:
-    try:
-        root = ET.fromstring(xml)
-    except ET.ParseError:
-        return  # the URDF parser reports it, with line and column
+def _refuse_unexpanded(path: str, root: ET.Element) -> None:
     for el in root.iter():
         for name, value in el.attrib.items():
             m = _UNEXPANDED.search(value)
@@ -213,12 +222,8 @@ def _is_package(folder: str, name: str) -> bool:
 _PLUGIN_TAGS = {"left": ("leftjoint", "left_joint"), "right": ("rightjoint", "right_joint")}
 
 
-def drive_joints(path: str, xml: bytes) -> tuple[str, str] | None:
+def drive_joints(root: ET.Element) -> tuple[str, str] | None:
     """(left, right) joints named by a diff-drive plugin or by ``ros2_control`` velocity-commanded joints."""
-    try:
-        root = ET.fromstring(xml)
-    except ET.ParseError:
-        return None
     for plugin in root.iter("plugin"):
         found = {}
         for side, tags in _PLUGIN_TAGS.items():

@@ -25,7 +25,6 @@ import logging
 import math
 import os
 import re
-import xml.etree.ElementTree as ET
 
 import mujoco
 import numpy as np
@@ -93,16 +92,6 @@ def _pos_quat(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return T[:3, 3].copy(), quat
 
 
-def _check_xml(path: str, xml: bytes) -> None:
-    """yourdfpy silently "recovers" broken XML; refuse it with the parser's line and column instead."""
-    try:
-        root = ET.fromstring(xml)
-    except ET.ParseError as e:
-        raise MjcfError(f"{path}: not a well-formed URDF ({e})") from None
-    if root.tag != "robot":
-        raise MjcfError(f"{path}: root element is <{root.tag}>, expected <robot>")
-
-
 class _Resolver:
     """URDF mesh filename → file: relative to the description's folder, absolute, or ``package://NAME/…``
     through :func:`mjcf.robot_source.find_package` (the ``--package`` map, then the folders above)."""
@@ -127,8 +116,7 @@ class _Resolver:
 
 def load_urdf(path: str, config: RobotConfig = RobotConfig()) -> tuple[yourdfpy.URDF, _Resolver, Description]:
     """The description at ``path`` (URDF or xacro) parsed, its mesh resolver, and what reading it found."""
-    description = read_description(path, config.xacro_args, config.package_dirs)
-    _check_xml(path, description.xml)
+    description = read_description(path, config.xacro_args, config.package_dirs)  # well-formed, <robot> root
     resolver = _Resolver(description, config.package_dirs)
     try:
         # yourdfpy logs a warning per unresolved file; we report missing meshes ourselves
