@@ -22,9 +22,6 @@ import argparse
 import json
 import math
 import os
-import shutil
-import subprocess
-import sys
 import tempfile
 import time
 
@@ -49,26 +46,20 @@ def on_ray(n: int, cpus: int, laps: int, max_iter: int) -> tuple[float, float, l
     """(study wall time, head start-up time, results) on a fresh local Ray head with ``cpus`` CPUs."""
     import ray
 
-    from tuner.cluster import study_on_ray, wait_for_cluster
+    from tuner.cluster import local_head, study_on_ray, wait_for_cluster
 
-    exe = os.path.join(os.path.dirname(sys.executable), "ray")
-    exe = exe if os.path.exists(exe) else shutil.which("ray")
-    temp = tempfile.mkdtemp(prefix="ray")
-    t0 = time.perf_counter()
-    subprocess.run([exe, "start", "--head", "--num-cpus", str(cpus), "--include-dashboard", "false", "--port", "0",
-                    "--temp-dir", temp], check=True, capture_output=True, timeout=120,
-                   env={**os.environ, "RAY_USAGE_STATS_ENABLED": "0"})
-    try:
-        ray.init(address="auto", log_to_driver=False)
-        wait_for_cluster(ray, cpus)
-        start = time.perf_counter() - t0
-        t1 = time.perf_counter()
-        results = study_on_ray(designs(n), BASE, laps, max_iter, "auto")
-        wall = time.perf_counter() - t1
-    finally:
-        ray.shutdown()
-        subprocess.run([exe, "stop", "--force"], capture_output=True, timeout=120)
-        shutil.rmtree(temp, ignore_errors=True)
+    with tempfile.TemporaryDirectory(prefix="ray") as temp:
+        t0 = time.perf_counter()
+        with local_head(cpus, temp):
+            ray.init(address="auto", log_to_driver=False)
+            try:
+                wait_for_cluster(ray, cpus)
+                start = time.perf_counter() - t0
+                t1 = time.perf_counter()
+                results = study_on_ray(designs(n), BASE, laps, max_iter, "auto")
+                wall = time.perf_counter() - t1
+            finally:
+                ray.shutdown()
     return wall, start, results
 
 

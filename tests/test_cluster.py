@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -20,11 +19,10 @@ if os.environ.get("CI"):
 else:
     pytest.importorskip("ray")
 
-from tuner.cluster import study_on_ray
+from tuner.cluster import local_head, study_on_ray
 from tuner.design import grid, study
 
 RUN = [sys.executable, "-m", "twin.run"]
-RAY = os.path.join(os.path.dirname(sys.executable), "ray")
 DESIGNS = {"cad.S": (0.05, 0.07)}
 SMALL = ["--track", "oval", "--laps", "2", "--max-iter", "2"]
 BASE = {"track": "oval", "metres_per_pixel": None, "values": {}}
@@ -33,14 +31,8 @@ BASE = {"track": "oval", "metres_per_pixel": None, "values": {}}
 @pytest.fixture(scope="module")
 def head(tmp_path_factory):
     """A local Ray head with 2 CPUs, stopped afterwards."""
-    temp = tmp_path_factory.mktemp("ray")
-    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
-    r = subprocess.run([RAY if os.path.exists(RAY) else shutil.which("ray"), "start", "--head", "--num-cpus", "2",
-                        "--include-dashboard", "false", "--temp-dir", str(temp), "--port", "0"],
-                       capture_output=True, text=True, timeout=120, env=env)
-    assert r.returncode == 0, r.stderr
-    yield
-    subprocess.run([RAY if os.path.exists(RAY) else "ray", "stop", "--force"], capture_output=True, timeout=120)
+    with local_head(2, str(tmp_path_factory.mktemp("ray"))):
+        yield
 
 
 def comparable(designs: list[dict]) -> list[dict]:

@@ -14,9 +14,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+import shutil
+import subprocess
+import sys
 import time
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
 from lf_common import VERSION
 from lf_common.errors import LineFollowerError
@@ -99,3 +104,28 @@ def wait_for_cluster(ray, cpus: int, timeout_s: float = CONNECT_TIMEOUT_S) -> No
         if time.monotonic() > deadline:
             raise ClusterError(f"the cluster has {ray.cluster_resources().get('CPU', 0):g} CPUs, not {cpus}, after {timeout_s:g} s")
         time.sleep(0.2)
+
+
+def ray_executable() -> str:
+    """The ``ray`` command beside this Python (a venv's ``bin/``), else on PATH."""
+    here = os.path.join(os.path.dirname(sys.executable), "ray")
+    found = here if os.path.exists(here) else shutil.which("ray")
+    if not found:
+        raise ClusterError("no 'ray' command beside this Python or on PATH: pip install -e '.[cluster]'")
+    return found
+
+
+@contextlib.contextmanager
+def local_head(cpus: int, temp_dir: str) -> Iterator[None]:
+    """A Ray head on this machine with ``cpus`` CPUs (``ray start --head``), which ``auto`` then joins; stopped
+    (``ray stop --force``) afterwards. For tests and benchmarks: a real cluster is started by its operator."""
+    exe = ray_executable()
+    r = subprocess.run([exe, "start", "--head", "--num-cpus", str(cpus), "--include-dashboard", "false", "--port", "0",
+                        "--temp-dir", temp_dir], capture_output=True, text=True, timeout=120,
+                       env={**os.environ, "RAY_USAGE_STATS_ENABLED": "0"})
+    if r.returncode != 0:
+        raise ClusterError(f"ray start --head failed: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
+    try:
+        yield
+    finally:
+        subprocess.run([exe, "stop", "--force"], capture_output=True, timeout=120)
