@@ -224,10 +224,11 @@ class _Converter:
         self.geoms[link_name] = []
         for i, vis in enumerate(link.visuals):
             self._geom(body, link_name, vis, f"{link_name}/visual{i}", visual=True)
-        collisions = [(f"{link_name}/{c.name}" if c.name else f"{link_name}/collision{i}", c)
-                      for i, c in enumerate(link.collisions)]
-        if not collisions and link.visuals and self.moves(link_name):
-            collisions = [(f"{link_name}/from_visual{i}", v) for i, v in enumerate(link.visuals)]
+        shapes = self.shapes(link)  # (the visuals of a moving link that has no collisions)
+        from_visuals = bool(shapes) and not link.collisions
+        collisions = [(f"{link_name}/from_visual{i}" if from_visuals else
+                       f"{link_name}/{c.name}" if c.name else f"{link_name}/collision{i}", c) for i, c in enumerate(shapes)]
+        if from_visuals:
             self.notes.append(f"link {link_name} moves but has visuals only: its visuals are its collision shape too")
             log.warning("%s: %s", self.path, self.notes[-1])
         for i, (gname, col) in enumerate(collisions):
