@@ -174,16 +174,28 @@ def _check_sizes(lib: ctypes.CDLL) -> None:
             )
 
 
+def check_library(lib: ctypes.CDLL) -> None:
+    """Raise ImportError unless a library built from twin/csrc (``_lfcore``, ``_lfavr``) has this package's structs
+    and MuJoCo."""
+    lib.lf_sizes.restype = lib.lf_layout.restype = c_int32
+    lib.lf_sizes.argtypes = [ctypes.POINTER(c_int64), c_int32]
+    lib.lf_layout.argtypes = [ctypes.POINTER(ctypes.POINTER(Field))]
+    _check_sizes(lib)
+    check_layout(library_layout(lib), mirrors())
+
+
+def mujoco_function(name: str) -> int:
+    """The address of a function of the libmujoco the mujoco module loaded (for C that calls MuJoCo)."""
+    return ctypes.cast(getattr(_mujoco, name), ctypes.c_void_p).value
+
+
 def _load() -> ctypes.CDLL:
     lib = ctypes.CDLL(_library_path())
     try:
         lib.lf_sizes.restype = lib.lf_layout.restype = c_int32
     except AttributeError as e:  # built before the layout table existed
         raise ImportError(f"twin._lfcore is out of date ({e}); rebuild it with pip install -e .") from None
-    lib.lf_sizes.argtypes = [ctypes.POINTER(c_int64), c_int32]
-    lib.lf_layout.argtypes = [ctypes.POINTER(ctypes.POINTER(Field))]
-    _check_sizes(lib)
-    check_layout(library_layout(lib), mirrors())
+    check_library(lib)
     P, S = ctypes.POINTER, ctypes.POINTER(FwState)
     u16p = P(c_uint16)
     lib.lf_reset.argtypes = [S, c_int32]
@@ -223,7 +235,7 @@ def _libmujoco() -> ctypes.CDLL:
 lib = _load()
 _mujoco = _libmujoco()
 lib.lf_set_ray.argtypes = [ctypes.c_void_p]
-lib.lf_set_ray(ctypes.cast(_mujoco.mj_ray, ctypes.c_void_p).value)
+lib.lf_set_ray(mujoco_function("mj_ray"))
 
 # --- MuJoCo's log: the C handler keeps a few messages and counts the rest (an unstable simulation warns at every
 # step, ~750 KB a lap); flush_mujoco_log hands them to Python's logging

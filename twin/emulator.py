@@ -28,7 +28,7 @@ from twin.closed_loop import run_laps
 from twin.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.lap import COL
-from twin.wire import Event, Header, Sample, encode
+from twin.wire import Event, Header, Sample, WireError, decode, encode
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +52,39 @@ def lap_records(twin: DigitalTwin, seed: int, every: int, laps: int | None) -> I
         log.info("lap %d: %s", k, f"{lap.lap_time_s:.3f} s" if lap.completed else lap.failure)
         offset = end
         k += 1
+
+
+def firmware_lap_records(twin: DigitalTwin, elf: str | None, seed: int, every: int,
+                         laps: int | None) -> Iterator[tuple[float, str]]:
+    """(time since power-up [s], wire line) for lap after lap of the robot's own firmware on the emulated MCU
+    (:func:`twin.pil.run_pil_lap`): its UART lines as it sent them, and after each lap the LAP or FAIL event of a
+    timing gate at the finish line (the robot itself cannot tell a lap from the next)."""
+    from twin.pil import run_pil_lap  # needs the simavr glue only when asked for
+
+    offset, k = 0.0, 0
+    while laps is None or k < laps:
+        lines: list[tuple[float, str]] = []
+        lap, _ = run_pil_lap(twin, elf, seed=seed + k, keep_trace=False, telemetry_every=every,
+                             on_line=lambda t, line: lines.append((t, line)))
+        span = lap.lap_time_s if lap.completed else lap.simulated_s
+        for t, line in lines:
+            sample = _sample_time(line)  # its own clock; other lines come with their 0.1 s chunk's time
+            t = sample if sample is not None else max(t, 0.0)  # what came before the button press, at the start
+            if t <= span:  # the robot is picked up at the finish: what it sends after goes unheard
+                yield offset + t, line
+        yield offset + span, encode(Event(span, "LAP", lap_time_s=lap.lap_time_s) if lap.completed
+                                    else Event(span, "FAIL", reason=lap.failure))
+        log.info("lap %d (firmware on the MCU): %s", k, f"{lap.lap_time_s:.3f} s" if lap.completed else lap.failure)
+        offset += span
+        k += 1
+
+
+def _sample_time(line: str) -> float | None:
+    try:
+        record = decode(line)
+    except WireError:
+        return None
+    return record.t if isinstance(record, Sample) else None
 
 
 def stream(lines: Iterator[tuple[float, str]], write: Callable[[bytes], None], speed: float,

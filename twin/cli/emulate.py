@@ -8,8 +8,8 @@ import os
 
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.emulator import (NoReader, accept, check_link_path, drain_pty, lap_records, open_pty, pty_writer, release_link,
-                           serve_tcp, stream)
+from twin.emulator import (NoReader, accept, check_link_path, drain_pty, firmware_lap_records, lap_records, open_pty,
+                           pty_writer, release_link, serve_tcp, stream)
 from twin.errors import TwinError
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
@@ -30,6 +30,7 @@ def add_parser(sub) -> None:
                    help="serve on 127.0.0.1:PORT instead of a pty (0: any free port)")
     p.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty, stable across restarts")
     p.add_argument("--echo", metavar="FILE", help="append every line sent to FILE")
+    o.add_firmware(p, "the robot (with avr or an ELF, the lines are the MCU's UART output)")
     p.add_argument("--idle-timeout", type=o.number(0.1, 86400.0), default=60.0, metavar="WALL_S",
                    help="stop when nobody has read the stream for this long (no TCP client, a pty nobody reads)")
     o.add_json(p)
@@ -58,7 +59,12 @@ def run(args: argparse.Namespace) -> int:
     try:
         twin = o.twin_from_args(args)
         twin.model()
-        lines = lap_records(twin, args.seed, args.every, args.laps)
+        if args.firmware == "c":
+            lines = lap_records(twin, args.seed, args.every, args.laps)
+        else:
+            elf = None if args.firmware == "avr" else args.firmware
+            _check_firmware(twin, elf)  # a bad ELF or a missing simavr fails now, not when the first reader comes
+            lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps)
         echo = echo_file.write if echo_file else None
         if args.tcp is not None:
             _serve_tcp(args, lines, echo, out)
@@ -70,6 +76,16 @@ def run(args: argparse.Namespace) -> int:
         if echo_file:
             echo_file.close()
     return 0
+
+
+def _check_firmware(twin, elf: str | None) -> None:
+    from twin import avr_firmware
+    from twin.mcu import glue
+
+    glue()
+    params = twin.control_params()
+    avr_firmware.check_config(params, twin.sensor_model().timeout_us)
+    avr_firmware.check_elf(elf or avr_firmware.build("robot"), need=avr_firmware.TRACE_SYMBOLS)
 
 
 def _serve_tcp(args, lines, echo, out: Output) -> None:

@@ -1,4 +1,5 @@
-"""``lap``: calibrate, then one closed-loop lap (firmware in C), reported as text or JSON."""
+"""``lap``: calibrate, then one closed-loop lap, reported as text or JSON. The firmware runs as C in the twin's
+callback, or (``--firmware avr``) as the robot's ATmega328P binary in simavr, with the MCU's figures reported."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from twin.cli import options as o
 from twin.cli.output import Output
 from twin.closed_loop import run_laps
 from twin.lap import LapLimits
+from twin.pil import run_pil_lap
 
 HELP = "calibrate and run one closed-loop lap; print the lap time and a summary"
 
@@ -23,6 +25,7 @@ def add_parser(sub) -> None:
                    help="a lap not done after this many simulated seconds ends as 'timeout'")
     p.add_argument("--timeout", dest="lap_timeout", type=o.number(0.0, 3600.0, lo_open=True),
                    action=o.deprecated(argparse._StoreAction, "--lap-timeout"), help=argparse.SUPPRESS)
+    o.add_firmware(p, "the lap")
     o.add_json(p)
     o.add_recording(p, "the lap")
     o.add_verbose(p)
@@ -37,10 +40,17 @@ def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     recording.check_targets(args.save, args.view)  # before the lap: a bad path fails now, not after
     twin = o.twin_from_args(args)
-    result = run_laps(twin, [{}], seed=args.seed, limits=LapLimits(timeout_s=args.lap_timeout),
-                      keep_traces=bool(args.save or args.view))[0]
+    limits, keep = LapLimits(timeout_s=args.lap_timeout), bool(args.save or args.view)
+    mcu = None
+    if args.firmware == "c":
+        result = run_laps(twin, [{}], seed=args.seed, limits=limits, keep_traces=keep)[0]
+    else:
+        result, mcu = run_pil_lap(twin, None if args.firmware == "avr" else args.firmware, seed=args.seed,
+                                  limits=limits, keep_trace=keep)
     saved = recording.save_laps(args.save, args.view, twin.track, twin.texture, [result], ["robot"])
-    summary = {**lap_summary(result, twin, args.seed), "recording": saved}
+    summary = {**lap_summary(result, twin, args.seed), "firmware": args.firmware, "recording": saved}
+    if mcu:
+        summary["mcu"] = mcu.summary()
     out.document(summary)
     if result.completed:
         out.say(f"lap completed in {result.lap_time_s:.3f} s on {twin.track.name} ({twin.track.length_m:.2f} m)")
@@ -52,6 +62,11 @@ def run(args: argparse.Namespace) -> int:
     p = result.parameters
     out.say(f"gains: v_max={p['control.v_max']:g} m/s, K_B={p['control.kb']:g}, K_P={p['control.kp']:g}, "
             f"K_I={p['control.ki']:g}, K_D={p['control.kd']:g}, Δt={p['control.dt'] * 1000:g} ms; seed {args.seed}")
+    if mcu:
+        out.say(f"MCU: {mcu.mcu} at {mcu.f_cpu_hz / 1e6:g} MHz ({mcu.board}): busy {mcu.busy_cycles_mean:.0f} cycles "
+                f"per tick on average, {mcu.busy_cycles_max} at most, of {mcu.period_cycles} (headroom "
+                f"{mcu.headroom * 100:.1f} %, {mcu.overruns} overruns); flash {mcu.flash_bytes} of {mcu.flash_total_bytes} B, "
+                f"RAM {mcu.ram_bytes} of {mcu.ram_total_bytes} B (static); {mcu.telemetry_lines} telemetry lines")
     if saved:
         out.say(f"recording: {saved}")
     return 0

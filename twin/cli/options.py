@@ -153,6 +153,13 @@ def add_out_dir(p: argparse.ArgumentParser, what: str, default: str | None) -> N
                    help=f"write {what} into this folder (new, empty, or one this program wrote)")
 
 
+def add_firmware(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--firmware", metavar="c|avr|FILE.elf", default="c",
+                   help=f"what runs the firmware for {what}: c, the portable C in the twin's callback; avr, the robot's "
+                   "ATmega328P program built from twin/csrc/firmware/avr and run cycle by cycle in simavr (processor "
+                   "in the loop); or an ELF of that program")
+
+
 def add_json(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON document on stdout (everything else on stderr)")
 

@@ -20,6 +20,8 @@ static lf_ray_fn ray_fn = 0;
 /* Hand over mj_ray; until then the callback leaves every simulation alone. */
 void lf_set_ray(void *fn) { ray_fn = (lf_ray_fn)fn; }
 
+int32_t lf_has_ray(void) { return ray_fn != 0; }
+
 #define SIM_WORDS ((int64_t)((sizeof(lf_sim) + sizeof(mjtNum) - 1) / sizeof(mjtNum)))
 #define RECORD_WORDS ((int64_t)(sizeof(lf_record) / sizeof(mjtNum)))
 
@@ -45,7 +47,7 @@ static int in_range(int64_t id, int64_t n) { return id >= 0 && id < n; }
 
 /* Whether a head fits the model it is stepped with: LF_OK, or the first misfit. Every index the callback uses
  * comes from the head, so each is checked here (a few dozen comparisons, against ~10 us of physics per step). */
-static int32_t check(const mjModel *m, const lf_sim *s) {
+int32_t lf_check(const mjModel *m, const lf_sim *s) {
   int64_t signature[LF_SIGNATURE];
   int32_t i;
   if (s->layout_version != LF_LAYOUT_VERSION) return LF_ERR_LAYOUT;
@@ -70,16 +72,24 @@ static int32_t check(const mjModel *m, const lf_sim *s) {
 }
 
 /* Electrical power drawn by a DC motor, u i (the driver returns nothing to the battery). */
-static double motor_power(const mjModel *m, const mjData *d, int32_t a) {
+double lf_motor_power(const mjModel *m, const mjData *d, int32_t a) {
   double current;
   if (m->actuator_actnum[a] > 0) current = d->act[m->actuator_actadr[a]];
   else current = d->actuator_force[a] / m->actuator_gainprm[a * mjNGAIN + 1];
   return fmax(0.0, d->ctrl[a] * current);
 }
 
-static void read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
+/* Sensor i's raw reading now (s->raw[i]), drawing its noise from s->rng; returns its height above the floor [m]. */
+double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
+  /* the world only (groups 0-1: the floor, obstacles); the robot's own geoms (2: visual, 3: collision) never block */
+  static const mjtByte groups[mjNGROUP] = {1, 1, 0, 0, 0, 0};
   lf_texture tex;
-  int32_t i, t = s->texture_id;
+  int32_t t = s->texture_id;
+  const mjtNum *origin = d->site_xpos + 3 * s->sensor_site[i];
+  const mjtNum *xmat = d->site_xmat + 9 * s->sensor_site[i];
+  mjtNum dir[3], normal[3];
+  int geom = -1;
+  double reflectance = 0.0, height;
   tex.data = m->tex_data + m->tex_adr[t];
   tex.width = m->tex_width[t];
   tex.height = m->tex_height[t];
@@ -87,25 +97,24 @@ static void read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *h
   tex.origin_x = s->texture_origin_x;
   tex.origin_y = s->texture_origin_y;
   tex.metres_per_pixel = s->texture_metres_per_pixel;
+  dir[0] = xmat[2];
+  dir[1] = xmat[5];
+  dir[2] = xmat[8];
+  height = ray_fn(m, d, origin, dir, groups, 1, s->sensor_body, &geom, normal);
+  if (height >= 0.0)
+    reflectance = lf_footprint_reflectance(&tex, origin[0] + height * dir[0], origin[1] + height * dir[1],
+                                           lf_footprint_radius(&s->sensor, height));
+  else
+    height = 0.0; /* nothing under the sensor: no light comes back */
+  s->raw[i] = lf_raw_reading(&s->sensor, reflectance, height, lf_noise(&s->rng));
+  return height;
+}
+
+static void read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
+  int32_t i;
   for (i = 0; i < s->nsensor; i++) {
-    /* the world only (groups 0-1: the floor, obstacles); the robot's own geoms (2: visual, 3: collision) never block */
-    static const mjtByte groups[mjNGROUP] = {1, 1, 0, 0, 0, 0};
-    const mjtNum *origin = d->site_xpos + 3 * s->sensor_site[i];
-    const mjtNum *xmat = d->site_xmat + 9 * s->sensor_site[i];
-    mjtNum dir[3], normal[3];
-    int geom = -1;
-    double reflectance = 0.0, height;
-    dir[0] = xmat[2];
-    dir[1] = xmat[5];
-    dir[2] = xmat[8];
-    height = ray_fn(m, d, origin, dir, groups, 1, s->sensor_body, &geom, normal);
-    if (height >= 0.0)
-      reflectance = lf_footprint_reflectance(&tex, origin[0] + height * dir[0], origin[1] + height * dir[1],
-                                             lf_footprint_radius(&s->sensor, height));
-    else
-      height = 0.0; /* nothing under the sensor: no light comes back */
+    double height = lf_read_sensor(m, d, s, i);
     if (i == 0) *height0 = height;
-    s->raw[i] = lf_raw_reading(&s->sensor, reflectance, height, lf_noise(&s->rng));
   }
 }
 
@@ -159,7 +168,7 @@ void lf_locate(const double *c, int32_t n, double length, double x, double y, in
   *seg = i;
 }
 
-static void write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0) {
+void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0) {
   lf_record *r = (lf_record *)(s + 1) + (s->records_written % s->record_capacity);
   const mjtNum *q = d->xquat + 4 * s->root_body;
   int32_t i;
@@ -196,11 +205,11 @@ void lf_control_callback(const mjModel *m, mjData *d) {
   lf_sim *s = sim_of(m, d);
   double next_tick, height0 = 0.0, mode;
   if (!s || s->error != LF_OK || !ray_fn) return;
-  s->error = check(m, s);
+  s->error = lf_check(m, s);
   if (s->error != LF_OK) return; /* refused: Python ends the lap; nothing here reads the head's indices again */
   if (d->time > s->last_time) {
     s->energy_j += (d->time - s->last_time) *
-                   (motor_power(m, d, s->actuator_left) + motor_power(m, d, s->actuator_right));
+                   (lf_motor_power(m, d, s->actuator_left) + lf_motor_power(m, d, s->actuator_right));
     s->last_time = d->time;
   }
   /* a tick is due when time reaches phase start + ticks * dt (half a step of slack for rounding) */
@@ -212,5 +221,5 @@ void lf_control_callback(const mjModel *m, mjData *d) {
   d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
   s->ticks++;
-  write_record(m, d, s, mode, height0);
+  lf_write_record(m, d, s, mode, height0);
 }

@@ -109,4 +109,14 @@ int32_t lf_sizes(int64_t *out, int32_t n);
 void lf_locate(const double *centre, int32_t n, double length, double x, double y, int64_t *seg, double *progress,
                double *offset);
 
+/* Shared by the control callback and the processor-in-the-loop glue (twin/csrc/pil), which runs the firmware on an
+ * emulated MCU instead of calling lf_step. mujoco.h must be included before this part. */
+#ifdef mjVERSION_HEADER
+int32_t lf_check(const mjModel *m, const lf_sim *s);         /* LF_OK, or why the head does not fit the model */
+int32_t lf_has_ray(void);                                    /* lf_set_ray has been called */
+double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i);
+void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0);
+double lf_motor_power(const mjModel *m, const mjData *d, int32_t a); /* electrical power u i, >= 0 [W] */
+#endif
+
 #endif
