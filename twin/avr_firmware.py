@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import binascii
 import dataclasses
+import functools
 import hashlib
 import os
 import re
@@ -88,6 +89,11 @@ def _avr_gcc() -> str:
     return gcc
 
 
+@functools.lru_cache(maxsize=4)
+def _compiler_version(gcc: str) -> str:
+    return subprocess.run([gcc, "--version"], capture_output=True, text=True, timeout=30).stdout
+
+
 def _source_digest(gcc: str) -> str:
     h = hashlib.sha256()
     for root, _, files in sorted(os.walk(SOURCE_DIR)):
@@ -97,7 +103,7 @@ def _source_digest(gcc: str) -> str:
                 h.update(os.path.relpath(path, SOURCE_DIR).encode() + b"\0")
                 with open(path, "rb") as f:
                     h.update(f.read())
-    h.update(subprocess.run([gcc, "--version"], capture_output=True, text=True, timeout=30).stdout.encode())
+    h.update(_compiler_version(gcc).encode())
     h.update(" ".join(CFLAGS).encode())
     return h.hexdigest()[:16]
 
@@ -112,7 +118,8 @@ def build(program: str = "robot") -> str:
         done = subprocess.run([gcc, f"-mmcu={MCU}", f"-DF_CPU={F_CPU_HZ}UL", *CFLAGS, "-o", out, *sources, "-lm"],
                               capture_output=True, text=True, timeout=300)
         if done.returncode:
-            first = (done.stderr.strip().splitlines() or ["no message"])[0]
+            lines = done.stderr.strip().splitlines() or ["no message"]
+            first = next((line for line in lines if "error" in line), lines[0])
             raise TwinError(f"avr-gcc could not build the {program} firmware: {first}")
 
     folder = cached_folder(os.path.join(cache_dir(), "firmware", f"{program}-{_source_digest(gcc)}"), compile_into,

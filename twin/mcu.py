@@ -27,7 +27,8 @@ class McuStatus(ctypes.Structure):
     """``lf_avr_status``: the MCU's figures so far."""
 
     _fields_ = [("cycle", c_uint64), ("ticks", c_int64), ("busy_max", c_uint64), ("busy_sum", c_uint64),
-                ("busy_ticks", c_int64), ("uart_lost", c_int64)]
+                ("busy_ticks", c_int64), ("uart_lost", c_int64), ("read_error_max_us", c_double),
+                ("read_error_sum_us", c_double), ("read_errors", c_int64)]
 
 
 _lib: ctypes.CDLL | None = None

@@ -38,8 +38,8 @@ TELEMETRY_EVERY = 2  # one sample line every 2 ticks, as the emulator's default
 
 @dataclasses.dataclass(frozen=True)
 class McuReport:
-    """What the firmware cost the MCU. Cycles at ``f_cpu_hz``; busy = awake (not in SLEEP), per control tick of
-    the lap (calibration excluded); headroom = 1 − max busy / period."""
+    """What the firmware cost the MCU, and how well it timed its sensors. Cycles at ``f_cpu_hz``; busy = awake (not
+    in SLEEP), per control tick of the lap (calibration excluded); headroom = 1 − max busy / period."""
 
     mcu: str
     board: str
@@ -55,6 +55,8 @@ class McuReport:
     headroom: float
     ticks: int
     overruns: int
+    read_error_max_us: float  # |sensor reading the MCU timed − the physics' decay time|, lines that fell in time
+    read_error_mean_us: float  # signed mean of the same: the timing's bias
     telemetry_lines: int
     telemetry_bad_lines: int
     telemetry_dropped_lines: int
@@ -132,6 +134,8 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
         busy_cycles_max=busy_max,
         busy_cycles_mean=float(status.busy_sum / status.busy_ticks) if status.busy_ticks else 0.0,
         headroom=1.0 - busy_max / period, ticks=int(status.busy_ticks), overruns=overruns,
+        read_error_max_us=float(status.read_error_max_us),
+        read_error_mean_us=float(status.read_error_sum_us / status.read_errors) if status.read_errors else 0.0,
         telemetry_lines=telemetry.lines, telemetry_bad_lines=telemetry.bad, telemetry_dropped_lines=dropped,
         uart_bytes_lost=int(status.uart_lost),
     )

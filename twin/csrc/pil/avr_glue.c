@@ -19,6 +19,7 @@
  *
  * The MCU's UART bytes are kept for Python to drain: they are the robot's telemetry.
  */
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -83,6 +84,9 @@ typedef struct {
   uint64_t busy_sum;       /* cycles awake over the ticks counted */
   int64_t busy_ticks;      /* ticks counted */
   int64_t uart_lost;       /* UART bytes not kept because Python had not drained them */
+  double read_error_max_us; /* largest |MCU-timed reading - the physics' decay time| of a line that fell in time */
+  double read_error_sum_us; /* their sum (signed: MCU minus physics) */
+  int64_t read_errors;      /* readings compared */
 } lf_avr_status;
 
 struct lf_avr {
@@ -104,9 +108,11 @@ struct lf_avr {
   uint64_t tick_cycle;                       /* cycle of the last completed tick */
   uint64_t stall_cycles;                     /* the watchdog's limit */
   double height0;                            /* sensor 0's height at its last release [m] */
+  double physics_us[LF_BOARD_MAX_SENSORS];   /* each line's decay time at its last release [us] */
   /* motor drive integrated over the step */
   uint64_t drive_since;
   double drive_now[2], drive_sum[2];
+  uint8_t tccr_seen[2][2];                   /* the motor timers' control registers when the drive was decoded */
   /* CPU time */
   uint64_t busy, busy_tick_start;
   int64_t ticks_seen;
@@ -132,41 +138,51 @@ static void no_sleep(avr_t *avr, avr_cycle_count_t how_long) {
 
 static uint8_t reg(const lf_avr *a, uint16_t addr) { return a->avr->data[addr]; }
 
-/* Level of a compare-output line at timer count c (0..255), as the datasheet's Compare Output Mode tables give it
- * for fast PWM (WGM 3) and phase-correct PWM (WGM 1); other modes and COM = 0 leave the pin to PORT. */
-static int line_level(const lf_avr *a, const motor_lines *ml, int which, int c) {
+/* The timer counts c (0..255) of a PWM period at which a compare-output line is high, as the interval [lo, hi): the
+ * datasheet's Compare Output Mode tables for fast PWM (WGM 3) and phase-correct PWM (WGM 1, counted on the way up;
+ * its way down mirrors it). Other modes, and COM = 0, leave the pin to PORT; an input pin drives nothing. */
+static void line_high(const lf_avr *a, const motor_lines *ml, int which, int *lo, int *hi) {
   uint8_t tccra = reg(a, ml->tccra), wgm = (uint8_t)((tccra & 3u) | ((reg(a, ml->tccrb) >> 1) & 4u));
-  uint8_t com = (uint8_t)((tccra >> (which ? 4 : 6)) & 3u), ocr = reg(a, which ? ml->ocrb : ml->ocra);
+  uint8_t com = (uint8_t)((tccra >> (which ? 4 : 6)) & 3u);
+  int ocr = reg(a, which ? ml->ocrb : ml->ocra);
   uint8_t port = which ? ml->port_b : ml->port_a, bit = which ? ml->bit_b : ml->bit_a;
-  if (!(reg(a, ddr_of[port]) & (1u << bit))) return 0; /* an input: the driver sees no drive */
-  if ((wgm == 3 || wgm == 1) && com >= 2 && (reg(a, ml->tccrb) & 7u)) {
-    int below = c <= ocr;   /* fast PWM: low from BOTTOM through the match when inverted, high when not */
-    if (wgm == 1) below = c < ocr; /* phase correct: the line changes at the match going up and coming down */
-    return com == 3 ? !below : below;
+  *lo = 0;
+  if (!(reg(a, ddr_of[port]) & (1u << bit))) {
+    *hi = 0; /* an input: the driver sees no drive */
+  } else if ((wgm == 3 || wgm == 1) && com >= 2 && (reg(a, ml->tccrb) & 7u)) {
+    int below = wgm == 3 ? ocr + 1 : ocr; /* counts 0..OCR (fast PWM) or 0..OCR-1 (phase correct) before the match */
+    if (com == 2) *hi = below;            /* non-inverting: high until the match */
+    else *lo = below, *hi = 256;          /* inverting: high from the match to TOP */
+  } else {
+    *hi = (reg(a, port_of[port]) >> bit) & 1u ? 256 : 0;
   }
-  return (reg(a, port_of[port]) >> bit) & 1u;
 }
 
 /* Drive of one motor in [-1, 1]: the share of a PWM period with line A high and B low (forward) minus that with
  * A low and B high; both high or both low brake (0 V across the motor). */
 static double motor_drive(const lf_avr *a, int k) {
-  int c, forward = 0, reverse = 0;
-  for (c = 0; c < 256; c++) {
-    int hi_a = line_level(a, &motors[k], 0, c), hi_b = line_level(a, &motors[k], 1, c);
-    forward += hi_a && !hi_b;
-    reverse += !hi_a && hi_b;
-  }
-  return (forward - reverse) / 256.0;
+  int lo_a, hi_a, lo_b, hi_b, both;
+  line_high(a, &motors[k], 0, &lo_a, &hi_a);
+  line_high(a, &motors[k], 1, &lo_b, &hi_b);
+  both = (hi_a < hi_b ? hi_a : hi_b) - (lo_a > lo_b ? lo_a : lo_b);
+  if (both < 0) both = 0;
+  return ((hi_a - lo_a - both) - (hi_b - lo_b - both)) / 256.0;
 }
 
-static void drive_update(lf_avr *a) {
+/* Integrate the drive up to now; with recompute, decode it again from the registers (after a write to them). */
+static void drive_update(lf_avr *a, int recompute) {
   uint64_t now = a->avr->cycle;
   int k;
-  for (k = 0; k < 2; k++) {
-    a->drive_sum[k] += a->drive_now[k] * (double)(now - a->drive_since);
-    a->drive_now[k] = motor_drive(a, k);
-  }
+  for (k = 0; k < 2; k++) a->drive_sum[k] += a->drive_now[k] * (double)(now - a->drive_since);
   a->drive_since = now;
+  for (k = 0; k < 2 && !recompute; k++) /* a timer reconfigured without a hook of ours seeing it */
+    recompute = reg(a, motors[k].tccra) != a->tccr_seen[k][0] || reg(a, motors[k].tccrb) != a->tccr_seen[k][1];
+  if (!recompute) return;
+  for (k = 0; k < 2; k++) {
+    a->drive_now[k] = motor_drive(a, k);
+    a->tccr_seen[k][0] = reg(a, motors[k].tccra);
+    a->tccr_seen[k][1] = reg(a, motors[k].tccrb);
+  }
 }
 
 static void on_compare_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
@@ -174,7 +190,7 @@ static void on_compare_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *pa
   (void)addr;
   (void)v;
   a->pwm_written = avr->cycle;
-  drive_update(a); /* the register already holds v: simavr's own writer ran first */
+  drive_update(a, 1); /* the register already holds v: simavr's own writer ran first */
 }
 
 static avr_cycle_count_t line_falls(avr_t *avr, avr_cycle_count_t when, void *param) {
@@ -196,7 +212,11 @@ static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
   if (port < 0) return;
   before = a->ddr_seen[port];
   a->ddr_seen[port] = (uint8_t)value;
-  drive_update(a); /* a motor line may have changed direction */
+  if (port != LF_PORT_C) { /* a motor line may have changed direction */
+    drive_update(a, 0);
+    a->avr->data[ddr_of[port]] = (uint8_t)value; /* simavr raises this IRQ before it stores the value: store it now */
+    drive_update(a, 1);
+  }
   for (i = 0; i < a->nsensor; i++) {
     uint8_t bit = (uint8_t)(1u << pins[i][1]);
     double raw_us;
@@ -212,6 +232,7 @@ static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
       if (i == 0) a->height0 = height;
       raw_us = emitters ? a->s->raw[i] : a->s->sensor.timeout_us; /* emitters off: no light comes back */
     }
+    a->physics_us[i] = raw_us;
     avr_cycle_timer_register(a->avr, (avr_cycle_count_t)(raw_us * a->f_cpu / 1e6 + 0.5), line_falls, &a->refs[i]);
   }
 }
@@ -356,7 +377,8 @@ void lf_avr_zero_time(lf_avr *a) { a->zero_cycle = a->avr->cycle; }
 
 void lf_avr_reset_stats(lf_avr *a) {
   a->status.busy_max = a->status.busy_sum = 0;
-  a->status.busy_ticks = 0;
+  a->status.busy_ticks = a->status.read_errors = 0;
+  a->status.read_error_max_us = a->status.read_error_sum_us = 0.0;
 }
 
 /* Hold button B pressed (1) or let it go (0): pressed pulls the line low against the pull-up. */
@@ -401,7 +423,15 @@ static void record_tick(lf_avr *a) {
   lf_avr_state(a, &a->s->fw);
   memcpy(raw, a->avr->data + a->a_raw, sizeof raw);
   memcpy(&mode, a->avr->data + a->a_tick_mode, sizeof mode);
-  for (i = 0; i < a->s->nsensor; i++) a->s->raw[i] = raw[i];
+  for (i = 0; i < a->s->nsensor; i++) {
+    a->s->raw[i] = raw[i];
+    if (a->physics_us[i] < a->s->sensor.timeout_us) { /* how well the MCU timed a line that fell */
+      double error = raw[i] - a->physics_us[i];
+      if (fabs(error) > a->status.read_error_max_us) a->status.read_error_max_us = fabs(error);
+      a->status.read_error_sum_us += error;
+      a->status.read_errors++;
+    }
+  }
   a->s->ticks++;
   lf_write_record(a->m, a->d, a->s, mode, a->height0);
 }
@@ -434,7 +464,7 @@ int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep) {
     uint64_t end = a->zero_cycle + (uint64_t)((d->time + h) * a->f_cpu + 0.5);
     uint32_t ticks;
     ((step_fn)step1)(m, d);
-    drive_update(a); /* the drive so far belongs to earlier steps */
+    drive_update(a, 0); /* the drive so far belongs to earlier steps */
     a->drive_sum[0] = a->drive_sum[1] = 0;
     {
       uint64_t from = a->avr->cycle;
@@ -448,7 +478,7 @@ int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep) {
           return stalled(a, state == cpu_Done ? "the MCU stopped (it slept with interrupts off)" : "the MCU crashed");
         }
       }
-      drive_update(a);
+      drive_update(a, 0);
       for (i = 0; i < 2; i++) {
         double span = (double)(a->avr->cycle - from);
         double drive = span > 0 ? a->drive_sum[i] / span : a->drive_now[i];

@@ -5,7 +5,7 @@
 #include "../line_follower.h"
 
 void motors_init(void);
-/* duty in [-1, 1], > 0 forward; |duty| is rounded to 0..255 of the 8-bit PWM */
+/* duty in [-1, 1], > 0 forward; |duty| is rounded to the 8-bit PWM's 1/256 steps, at most 255/256 */
 void motors_set(lf_real left, lf_real right);
 
 #endif

@@ -1,0 +1,56 @@
+"""``firmware``: what to flash into the robot: the ATmega328P program and the EEPROM image of this twin's parameters."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+
+from lf_common.files import output_dir
+from twin import avr_firmware as fw
+from twin.cli import options as o
+from twin.cli.output import Output
+from twin.errors import TwinError
+from twin.pil import TELEMETRY_EVERY
+
+HELP = "write the robot's firmware (ELF, flash .hex) and its parameters (EEPROM .hex) for avrdude"
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("firmware", help=HELP, description=HELP + ". The program is built from twin/csrc/firmware/avr "
+                       f"for the {fw.BOARD} (pin map: board_3pi.h); the EEPROM image holds the gains, geometry and "
+                       "sensor timeout of the robot the flags describe, the ones 'lap --firmware avr' runs with.")
+    o.add_world(p)
+    o.add_values(p)
+    p.add_argument("--every", type=o.number(1, 1000, integer=True), default=TELEMETRY_EVERY, metavar="N",
+                   help="one telemetry sample line every N control ticks")
+    o.add_out_dir(p, "robot.elf, robot.hex and config.hex", "firmware")
+    o.add_json(p)
+    o.add_verbose(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    twin = o.twin_from_args(args)
+    image = fw.config_image(twin.control_params(), twin.sensor_model().timeout_us, args.every)
+    elf = fw.build("robot")
+    info = fw.check_elf(elf, need=fw.TRACE_SYMBOLS)
+    objcopy = shutil.which("avr-objcopy")
+    if not objcopy:
+        raise TwinError(f"avr-objcopy is not installed; it writes the flash image ({fw.INSTALL_AVR_GCC})")
+    with output_dir(args.out_dir, "firmware folder") as tmp:
+        shutil.copyfile(elf, os.path.join(tmp, "robot.elf"))
+        subprocess.run([objcopy, "-O", "ihex", "-R", ".eeprom", elf, os.path.join(tmp, "robot.hex")], check=True,
+                       capture_output=True, timeout=60)
+        with open(os.path.join(tmp, "config.hex"), "w") as f:
+            f.write(fw.intel_hex(image))
+    folder = os.path.abspath(args.out_dir)
+    flash = (f"avrdude -p m328p -c avrispv2 -P PORT -U flash:w:{os.path.join(folder, 'robot.hex')}:i "
+             f"-U eeprom:w:{os.path.join(folder, 'config.hex')}:i")
+    out.document({"folder": folder, "mcu": fw.MCU, "board": fw.BOARD, "flash_bytes": info.flash_bytes,
+                  "ram_bytes": info.ram_bytes, "eeprom_bytes": len(image), "avrdude": flash})
+    out.say(f"wrote {folder}: robot.elf, robot.hex (flash {info.flash_bytes} B), config.hex (EEPROM {len(image)} B)")
+    out.say(f"flash the robot (Pololu's USB AVR programmer speaks avrispv2): {flash}")
+    return 0
