@@ -114,5 +114,9 @@ void qtr_read(uint16_t *raw_us, uint8_t count, uint16_t timeout_us) {
       if ((high[port] & bit) && !(event_port[k][port] & bit)) counts[i] = elapsed, high[port] &= (uint8_t)~bit;
     }
   }
-  for (i = 0; i < count; i++) raw_us[i] = (uint16_t)(((uint32_t)counts[i] * 2u) / 5u);
+  for (i = 0; i < count; i++) { /* counts of 0.4 us to us: 2c/5 = 2q + 2r/5 for c = 5q + r, in 16 bits (a 32-bit
+                                 * division costs the AVR ~600 cycles, a 16-bit one ~200) */
+    uint16_t q = counts[i] / 5u, r = counts[i] % 5u;
+    raw_us[i] = (uint16_t)(2u * q + (2u * r) / 5u);
+  }
 }
