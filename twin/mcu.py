@@ -47,7 +47,10 @@ def glue() -> ctypes.CDLL:
         lib = ctypes.CDLL(found[0])
     except OSError as e:  # built, but libsimavr has gone since
         raise TwinError(f"{INSTALL_SIMAVR} ({e})") from None
-    core.check_library(lib)
+    try:
+        core.check_library(lib)
+    except ImportError as e:  # built from older sources
+        raise TwinError(f"twin._lfavr is out of date ({e}); rebuild it with pip install -e .") from None
     lib.lf_set_ray.argtypes = [c_void_p]
     lib.lf_set_ray(core.mujoco_function("mj_ray"))
     p = ctypes.POINTER
