@@ -52,6 +52,32 @@ def test_a_study_on_the_cluster_equals_the_local_one(head, tmp_path):
     assert comparable(a) == comparable(b)
 
 
+def test_a_sweep_on_the_cluster_equals_the_local_one(head, tmp_path):
+    """One Ray task per grid point: the points' laps equal the local one-batch sweep's, point for point."""
+    args = ["sweep", "control.v_max=0.5:0.9:3", "--track", "oval", "--seeds", "2", "--json"]
+    local = subprocess.run([*RUN, *args, "--out-dir", tmp_path / "local"], capture_output=True, text=True, timeout=600)
+    assert local.returncode == 0, local.stderr
+    ray_run = subprocess.run([*RUN, *args, "--cluster", "auto", "--out-dir", tmp_path / "ray"], capture_output=True,
+                             text=True, timeout=600)
+    assert ray_run.returncode == 0, ray_run.stderr
+    a, b = json.loads(local.stdout)["points"], json.loads(ray_run.stdout)["points"]
+    assert len(a) == 3 and a == b
+    assert len({p["median_lap_time_s"] for p in a}) == 3  # the points differ: an order mix-up would show
+
+
+def test_a_sweep_on_the_cluster_refuses_files_the_nodes_cannot_read(tmp_path):
+    from PIL import Image, ImageDraw
+
+    png = tmp_path / "ring.png"  # a good track, but a file on this machine only
+    image = Image.new("L", (1000, 1000), 255)
+    ImageDraw.Draw(image).ellipse((100, 100, 900, 900), outline=0, width=19)
+    image.save(png)
+    r = subprocess.run([*RUN, "sweep", "motion.mu=0.5:0.9:2", "--track", str(png), "--metres-per-pixel", "0.001",
+                        "--cluster", "auto", "--out-dir", tmp_path / "s"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "is an image" in r.stderr and not (tmp_path / "s").exists()
+
+
 def _task_pids() -> list[int]:
     """Ray workers running a design (Ray titles a busy worker's process ``ray::_task``)."""
     out = subprocess.run(["ps", "-eo", "pid=,args="], capture_output=True, text=True).stdout

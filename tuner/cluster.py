@@ -1,7 +1,10 @@
-"""A design study on a Ray cluster: one Ray task per design (rebuild, tune, race), gathered in design order.
+"""Design studies and sweeps on a Ray cluster: one Ray task per design (rebuild, tune, race) or per sweep point
+(its seeds' laps as one small batch), gathered in their order.
 
 * **Same answer as a local run.** A design's result depends on its values, the base values and the seeds only
-  (each task tunes with one thread, as a local worker does), never on the node or the order tasks finish in.
+  (each task tunes with one thread, as a local worker does), never on the node or the order tasks finish in; a
+  sweep point's laps are bit-identical to the same laps in the local sweep's one batch, as every lap is to running
+  it alone.
 * **No shared filesystem.** Each task builds its robot and track into its own node's verified cache
   (:mod:`lf_common.cache`); nothing but the design, the base values and the result crosses the network. The
   nodes need this package installed, at the driver's version (checked: a task on another version fails).
@@ -26,6 +29,9 @@ from typing import Callable, Iterator, Sequence
 from lf_common import VERSION
 from lf_common.errors import LineFollowerError
 from tuner.design import DesignResult, run_design
+from twin.closed_loop import run_laps
+from twin.digital_twin import DigitalTwin
+from twin.lap import LapResult
 
 log = logging.getLogger(__name__)
 
@@ -66,15 +72,19 @@ def connect(address: str):
     return ray
 
 
-def study_on_ray(designs: Sequence[dict], base: dict, laps: int, max_iter: int, address: str,
-                 on_done: Callable[[DesignResult], None] | None = None) -> list[DesignResult]:
-    """Every design as one Ray task; results in the order of ``designs`` (see the module docstring)."""
-    ray = connect(address)
-    remote = ray.remote(num_cpus=1, max_retries=RETRIES, retry_exceptions=False)(_task)
-    version = _version()
-    refs = [remote.remote(d, base, laps, max_iter, version) for d in designs]
+def _sweep_task(point: dict, seeds: list[int], base: dict, version: str) -> list[LapResult]:
+    if _version() != version:
+        raise ClusterError(f"this node has line-follower-twin {_version()}, the driver {version}: install the same version")
+    twin = DigitalTwin(track=base["track"], track_metres_per_pixel=base.get("metres_per_pixel"))
+    twin.update(base["values"])
+    return run_laps(twin, [point] * len(seeds), seed=seeds, nthread=1, keep_traces=False)
+
+
+def _gather(ray, remote, calls: Sequence[tuple], labels: Sequence[str], on_done: Callable | None) -> list:
+    """Submit ``remote(*call)`` for every call; the results in call order (see the module docstring)."""
+    refs = [remote.remote(*call) for call in calls]
     index = {ref: i for i, ref in enumerate(refs)}
-    results: list[DesignResult | None] = [None] * len(designs)
+    results: list = [None] * len(calls)
     pending = list(refs)
     try:
         while pending:
@@ -85,16 +95,38 @@ def study_on_ray(designs: Sequence[dict], base: dict, laps: int, max_iter: int, 
                     results[i] = ray.get(ref)
                 except ray.exceptions.RayTaskError as e:  # an error the task raised itself: the node's fault
                     cause = e.cause if isinstance(getattr(e, "cause", None), LineFollowerError) else e
-                    raise ClusterError(f"design {designs[i]}: {str(cause).strip().splitlines()[-1]}") from None
+                    raise ClusterError(f"{labels[i]}: {str(cause).strip().splitlines()[-1]}") from None
                 except ray.exceptions.RayError as e:  # retries used up (workers kept dying): say so, stop
-                    raise ClusterError(f"design {designs[i]}: lost after {RETRIES} retries ({type(e).__name__})") from None
+                    raise ClusterError(f"{labels[i]}: lost after {RETRIES} retries ({type(e).__name__})") from None
                 if on_done is not None:
                     on_done(results[i])
     except BaseException:
         for ref in pending:
             ray.cancel(ref, force=True)
         raise
-    return results  # type: ignore[return-value]
+    return results
+
+
+def study_on_ray(designs: Sequence[dict], base: dict, laps: int, max_iter: int, address: str,
+                 on_done: Callable[[DesignResult], None] | None = None) -> list[DesignResult]:
+    """Every design as one Ray task; results in the order of ``designs`` (see the module docstring)."""
+    ray = connect(address)
+    remote = ray.remote(num_cpus=1, max_retries=RETRIES, retry_exceptions=False)(_task)
+    version = _version()
+    return _gather(ray, remote, [(d, base, laps, max_iter, version) for d in designs],
+                   [f"design {d}" for d in designs], on_done)
+
+
+def sweep_on_ray(points: Sequence[dict], seeds: Sequence[int], base: dict, address: str,
+                 on_done: Callable[[list[LapResult]], None] | None = None) -> list[LapResult]:
+    """Every sweep point's laps (one per seed) as one Ray task; the laps in the order the local sweep runs them
+    (point by point, seed by seed). ``base``: the track (built in: nodes share no files) and every address's value."""
+    ray = connect(address)
+    remote = ray.remote(num_cpus=1, max_retries=RETRIES, retry_exceptions=False)(_sweep_task)
+    version = _version()
+    per_point = _gather(ray, remote, [(p, list(seeds), base, version) for p in points],
+                        [f"sweep point {p}" for p in points], on_done)
+    return [lap for laps in per_point for lap in laps]
 
 
 def wait_for_cluster(ray, cpus: int, timeout_s: float = CONNECT_TIMEOUT_S) -> None:

@@ -96,15 +96,29 @@ def check_axes(twin: DigitalTwin, axes: Sequence[Axis]) -> None:
         p.check(f"sweep {a.address} HI", a.upper)
 
 
-def sweep(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int], nthread: int = 0) -> list[Point]:
-    """Every grid point × seed as one batch of laps; points in grid order (the first axis slowest)."""
-    check_axes(twin, axes)
-    grid = [dict(zip([a.address for a in axes], map(float, combo))) for combo in itertools.product(*(a.values for a in axes))]
+def grid_points(axes: Sequence[Axis]) -> list[dict[str, float]]:
+    """The sweep's grid points in order (the first axis slowest)."""
+    return [dict(zip([a.address for a in axes], map(float, combo))) for combo in itertools.product(*(a.values for a in axes))]
+
+
+def check_size(grid: Sequence[dict], seeds: Sequence[int]) -> None:
     if len(grid) * len(seeds) > MAX_LAPS:
         raise TwinError(f"sweep: {len(grid) * len(seeds)} laps is more than the {MAX_LAPS} one batch holds; use fewer "
                         "points or seeds")
+
+
+def sweep(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int], nthread: int = 0) -> list[Point]:
+    """Every grid point × seed as one batch of laps; points in grid order (the first axis slowest)."""
+    check_axes(twin, axes)
+    grid = grid_points(axes)
+    check_size(grid, seeds)
     laps = run_laps(twin, [g for g in grid for _ in seeds], seed=[s for _ in grid for s in seeds], nthread=nthread,
                     keep_traces=False)
+    return points_of(grid, seeds, laps)
+
+
+def points_of(grid: Sequence[dict], seeds: Sequence[int], laps: Sequence) -> list[Point]:
+    """Each grid point's summary from its laps, which come point by point, seed by seed."""
     k = len(seeds)
     points = []
     for i, g in enumerate(grid):

@@ -9,7 +9,7 @@ from twin import recording
 from twin.cli import options as o
 from twin.cli.output import Output
 from twin.errors import TwinError
-from twin.sweep import Axis, check_axes, sweep, write_sweep
+from twin.sweep import Axis, check_axes, check_size, grid_points, points_of, sweep, write_sweep
 from lf_common.files import check_output_dir
 
 HELP = "sensitivity sweep: lap time, completion, cross-track error and energy against one or two parameters"
@@ -25,6 +25,9 @@ def add_parser(sub) -> None:
     o.add_seed(p, 0, "the first noise seed")
     p.add_argument("--seeds", type=o.number(1, 1000, integer=True), default=3, metavar="N", help="noise seeds per grid point")
     o.add_workers(p, "laps of the batch (threads)")
+    p.add_argument("--cluster", metavar="auto|ray://HOST:PORT", help="run each grid point's laps as a Ray task on a "
+                   "cluster (pip install -e '.[cluster]'; the generated robot on a built-in track: nodes share no "
+                   "files); the laps equal a local run's")
     o.add_out_dir(p, "sweep.csv, sweep.json and sweep.png", "sweep")
     o.add_json(p)
     o.add_recording(p, "the charts")
@@ -44,6 +47,30 @@ def parse_axis(text: str) -> Axis:
     return Axis(address.strip(), lo, hi, n)
 
 
+def _sweep_on_cluster(args, twin, axes, seeds, out: Output):
+    from tqdm import tqdm
+
+    from mjcf.track import BUILTIN_SEGMENTS
+    from tuner.cluster import sweep_on_ray
+
+    if getattr(args, "robot", None):
+        raise TwinError("--cluster: the nodes get parameter values, not files; a --robot description cannot go with "
+                        "them (sweep it locally)")
+    if args.track not in BUILTIN_SEGMENTS:
+        raise TwinError(f"--cluster: the nodes get parameter values, not files; track {args.track} is an image (use a "
+                        f"built-in track: {', '.join(BUILTIN_SEGMENTS)}, or sweep it locally)")
+    grid = grid_points(axes)
+    check_size(grid, seeds)
+    twin.model()  # built here too: a robot or track that cannot be built fails before any task is sent
+    base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": dict(twin.space.values)}
+    bar = tqdm(total=len(grid), desc="sweep points", unit="point", disable=None)
+    try:
+        laps = sweep_on_ray(grid, seeds, base, args.cluster, on_done=lambda _: bar.update(1))
+    finally:
+        bar.close()
+    return points_of(grid, seeds, laps)
+
+
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     check_output_dir(args.out_dir, "sweep folder")
@@ -52,7 +79,10 @@ def run(args: argparse.Namespace) -> int:
     twin = o.twin_from_args(args)
     check_axes(twin, axes)
     seeds = list(range(args.seed, args.seed + args.seeds))
-    points = sweep(twin, axes, seeds, nthread=args.workers)
+    if args.cluster:
+        points = _sweep_on_cluster(args, twin, axes, seeds, out)
+    else:
+        points = sweep(twin, axes, seeds, nthread=args.workers)
     meta = {"track": twin.track.name, "seeds": seeds, "base": {a: twin.space.get(a) for a in twin.space.addresses
                                                                 if a.startswith("control.")}}
     paths = write_sweep(args.out_dir, axes, points, meta)
