@@ -67,6 +67,9 @@ def run(args: argparse.Namespace) -> int:
                 f"per tick on average, {mcu.busy_cycles_max} at most, of {mcu.period_cycles} (headroom "
                 f"{mcu.headroom * 100:.1f} %, {mcu.overruns} overruns); flash {mcu.flash_bytes} of {mcu.flash_total_bytes} B, "
                 f"RAM {mcu.ram_bytes} of {mcu.ram_total_bytes} B (static); {mcu.telemetry_lines} telemetry lines")
+        if mcu.overruns:
+            out.say(f"warning: the firmware overran its {p['control.dt'] * 1000:g} ms period {mcu.overruns} times: the MCU "
+                    "cannot keep up at this control.dt, so its ticks stretched")
     if saved:
         out.say(f"recording: {saved}")
     return 0
