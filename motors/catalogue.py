@@ -8,6 +8,7 @@ pages as quoted by third-party copies (this machine cannot reach pololu.com), so
 Left out: LP 10:1 (its printed stall torque × no-load speed exceeds U × I_stall, which no DC motor can do; the
 datasheet row has no column header there), and rows whose speed, stall torque or stall current were not found
 (HP 10:1, 75:1, 150:1; MP 10:1, 150:1; HPCB 100:1). A missing no-load current is None (it is informative only).
+The 15:1 HPCB row is Pololu's own 3pi+ 32U4 User's Guide (the Hyper Edition's motor), read here.
 
 Inductance and rotor inertia are not published: every entry uses the default motor's assumptions (0.5 mH,
 2e-9 kg·m², typical of 10 mm-class brushed motors), as :data:`POLOLU_MP_6V_30_1` does.
@@ -42,12 +43,15 @@ CATALOGUE: dict[str, Datasheet] = {
     "pololu-hpcb-6v-30": _pololu(29.86, 1100, 0.15, 4.5, 1.5, "HPCB 6V 30:1 (#3072); https://www.pololu.com/product/3072/specs, as quoted by a third-party copy (not checked against pololu.com here)"),
     "pololu-hpcb-6v-50": _pololu(51.45, 650, 0.15, 7.4, 1.5, "HPCB 6V 50:1 (#3063); https://www.pololu.com/file/0J1487/pololu-micro-metal-gearmotors-rev-6-2.pdf, as quoted by a third-party copy (not checked against pololu.com here)"),
     "pololu-hpcb-6v-75": _pololu(75.81, 430, 0.15, 11, 1.5, "HPCB 6V 75:1 (#3074); https://www.pololu.com/product/3074/specs, as quoted by a third-party copy (not checked against pololu.com here)"),
+    # the exact ratio of Pololu's "15:1" is not on that page: 15 nominal (only the reflected rotor inertia uses it)
+    "pololu-hpcb-6v-15": _pololu(15.0, 2100, 0.1, 2.5, 1.5, "HPCB 6V 15:1, the 3pi+ 32U4 Hyper Edition's motor; Pololu 3pi+ 32U4 User's Guide, section 5.3 Motors (https://www.pololu.com/docs/0J83/5.3): 2100 RPM, 100 mA; 0.25 kg·cm, 1.5 A at 6 V"),
 }
 
-# Pololu's 3pi+ 32U4 editions differ in their motors (3pi+ 32U4 user's guide, section 1): Turtle 75:1 LP,
-# Standard 30:1 MP, Hyper 15:1 HPCB. Named presets for the first two; the Hyper's 15:1 HPCB figures were not
-# found (see the module docstring), so it has none.
-EDITIONS: dict[str, str] = {"3pi+-turtle": "pololu-lp-6v-75", "3pi+-standard": "pololu-mp-6v-30"}
+# Pololu's 3pi+ 32U4 editions differ in their motors (3pi+ 32U4 User's Guide, section 5.3,
+# https://www.pololu.com/docs/0J83/5.3): Turtle 75:1 LP, Standard 30:1 MP, Hyper 15:1 HPCB (top speeds 0.4, 1.5 and
+# ~4 m/s; Pololu recommends keeping the Hyper's motors below 50 % speed).
+EDITIONS: dict[str, str] = {"3pi+-turtle": "pololu-lp-6v-75", "3pi+-standard": "pololu-mp-6v-30",
+                            "3pi+-hyper": "pololu-hpcb-6v-15"}
 CATALOGUE.update({edition: CATALOGUE[motor] for edition, motor in EDITIONS.items()})
 
 

@@ -98,6 +98,9 @@ PRINTED = {
     "pololu-lp-6v-30": (450, 2.9, 0.36), "pololu-lp-6v-100": (130, 7.4, 0.36),  # datasheet Rev 2.0, p. 1
     "pololu-mp-6v-30": (720, 3.3, 0.67), "pololu-mp-6v-50": (420, 5.4, 0.67),  # product pages #2364 (3pi+ guide), #2365
     "pololu-hp-6v-30": (1000, 5.7, 1.6), "pololu-hpcb-6v-75": (430, 11, 1.5),
+    # 3pi+ 32U4 User's Guide §5.3, the editions' table: Standard 720 rpm 0.33 kg·cm 0.67 A, Turtle 180 rpm 0.64 kg·cm
+    # 0.36 A, Hyper 2100 rpm 0.25 kg·cm 1.5 A
+    "3pi+-standard": (720, 3.3, 0.67), "3pi+-turtle": (180, 6.4, 0.36), "3pi+-hyper": (2100, 2.5, 1.5),
 }
 # maximum output power the sources print [W]: a linear DC motor gives τ_stall·Ω_0/4 at half its no-load speed
 PRINTED_MAX_POWER = {"pololu-lp-6v-30": 0.31, "pololu-lp-6v-50": 0.29, "pololu-lp-6v-75": 0.29,
