@@ -263,4 +263,16 @@ def test_calibration_failures_name_their_cause(changes, cause):
 def test_a_motor_too_weak_for_the_robot_is_named(third_party_urdf):
     r = run("lap", "--robot", third_party_urdf, "--motor", "pololu-mp-6v-30", "--track", "oval", "--json")
     d = json.loads(r.stdout)
-    assert d["failure"] == "calibration" and "likely motor too weak" in d["detail"], d["detail"]
+    assert d["failure"] == "calibration" and "likely turn fell short of its plan" in d["detail"], d["detail"]
+    assert "too weak" in d["detail"]
+
+
+def test_a_fast_motor_that_cannot_get_up_to_speed_in_a_short_sweep_is_told_to_lengthen_it():
+    """The 3pi+ Hyper's 15:1 motors: the default turn is planned for 220 rad/s wheels, 0.08 s a quarter sweep, too
+    short to get up to speed; the named fix (a longer sweep) makes the lap."""
+    r = run("lap", "--motor", "3pi+-hyper", "--track", "oval", "--json")
+    d = json.loads(r.stdout)
+    assert d["failure"] == "calibration" and "raise control.cal_sweep" in d["detail"], d["detail"]
+    fixed = json.loads(run("lap", "--motor", "3pi+-hyper", "--track", "oval", "--set", "control.cal_sweep=2",
+                           "--json").stdout)
+    assert fixed["completed"], fixed["detail"]

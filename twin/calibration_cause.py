@@ -6,7 +6,7 @@ in place by θ about the axle brings a sensor at lateral offset y and distance S
 θ = atan(|y| / S), and over its far edge at atan((|y| + w/2) / S)); else a turn that fell short of its plan,
 which is timed for the firmware's expected wheel speed (``control.cal_duty`` × ``control.full_speed``): either
 so fast that the array turns more than half the line's angular width (w / S) between two reads and can miss it,
-or (the rest) motors too weak to reach that speed with this robot.
+or (the rest) motors that do not reach that speed with this robot in the time the sweep is planned to take.
 """
 
 from __future__ import annotations
@@ -37,6 +37,8 @@ def calibration_cause(twin, params, sensor, min_span_us: float) -> str:
     if step > line / 2:
         return (f"turn too fast: the array turns {step:.3f} rad between reads, more than half the line's width as "
                 f"the sensors see it ({line:.3f} rad), so reads can miss the line; lower control.cal_duty")
-    return (f"motor too weak: the turn is planned for wheels at control.cal_duty {params.cal_duty:g} × "
-            f"control.full_speed {params.wheel_speed_max:.3g} rad/s, which these motors do not reach with this robot; "
-            "raise control.cal_duty, or choose a stronger motor (--motor, --set motor.*)")
+    quarter_s = params.cal_sweep_rad / omega  # each sweep's first quarter, planned
+    return (f"turn fell short of its plan: it is timed for wheels at control.cal_duty {params.cal_duty:g} × "
+            f"control.full_speed {params.wheel_speed_max:.3g} rad/s, {quarter_s:.2g} s a quarter sweep, which these "
+            "motors do not reach with this robot (too weak, or too slow to get up to speed in so short a sweep); "
+            "raise control.cal_sweep or control.cal_duty, or choose a stronger motor (--motor, --set motor.*)")
