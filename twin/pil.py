@@ -102,7 +102,7 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
             judge.fail(CALIBRATION, f"the calibration turn would take {turn_s:.6g} s (limit "
                        f"{limits.calibration_timeout_s:g} s simulated)", 0.0, 0.0)
         else:
-            _calibrate(mcu, model, data, sim, judge, telemetry, steps, limits)
+            _calibrate(mcu, data, sim, judge, telemetry, steps, limits)
         if not judge.done:
             state = mcu.state()
             cal_min, cal_max = list(state.cal_min[: params.count]), list(state.cal_max[: params.count])
@@ -121,25 +121,27 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
             mcu.reset_stats()
             telemetry.offset = 0.0
             mcu.button(True)
-            _drive(mcu, model, data, sim, judge, telemetry, steps)
+            _drive(mcu, data, sim, judge, telemetry, steps)
         status = mcu.status()
         overruns = int.from_bytes(mcu.peek("fw_overruns", 2), "little")
         dropped = int.from_bytes(mcu.peek("uart_dropped", 2), "little") if "uart_dropped" in elf.symbols else 0
-    result = judge.result(params.count, cal_min, cal_max, lap.values)
-    period = round(params.dt_s * fw.F_CPU_HZ)
-    busy_max = int(status.busy_max)
-    report = McuReport(
+    return judge.result(params.count, cal_min, cal_max, lap.values), _report(elf, params.dt_s, status, overruns, dropped,
+                                                                           telemetry)
+
+
+def _report(elf: fw.ElfInfo, dt_s: float, status, overruns: int, dropped: int, telemetry: "_Telemetry") -> McuReport:
+    period = round(dt_s * fw.F_CPU_HZ)
+    return McuReport(
         mcu=fw.MCU, board=fw.BOARD, f_cpu_hz=fw.F_CPU_HZ, elf=elf.path, flash_bytes=elf.flash_bytes,
         flash_total_bytes=fw.FLASH_BYTES, ram_bytes=elf.ram_bytes, ram_total_bytes=fw.RAM_BYTES, period_cycles=period,
-        busy_cycles_max=busy_max,
+        busy_cycles_max=int(status.busy_max),
         busy_cycles_mean=float(status.busy_sum / status.busy_ticks) if status.busy_ticks else 0.0,
-        headroom=1.0 - busy_max / period, ticks=int(status.busy_ticks), overruns=overruns,
+        headroom=1.0 - int(status.busy_max) / period, ticks=int(status.busy_ticks), overruns=overruns,
         read_error_max_us=float(status.read_error_max_us),
         read_error_mean_us=float(status.read_error_sum_us / status.read_errors) if status.read_errors else 0.0,
         telemetry_lines=telemetry.lines, telemetry_bad_lines=telemetry.bad, telemetry_dropped_lines=dropped,
         uart_bytes_lost=int(status.uart_lost),
     )
-    return result, report
 
 
 def _place(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: Variant, seed: int) -> core.Sim:
@@ -182,7 +184,7 @@ def _advance(mcu: Mcu, data: mujoco.MjData, telemetry: _Telemetry, steps: int) -
     return None
 
 
-def _calibrate(mcu: Mcu, model, data, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int,
+def _calibrate(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int,
                limits: LapLimits) -> None:
     """Power-up to the end of the firmware's calibration turn (its mode leaves CALIBRATE)."""
     telemetry.offset = 0.0
@@ -205,7 +207,7 @@ def _calibrate(mcu: Mcu, model, data, sim: core.Sim, judge: LapJudge, telemetry:
             return
 
 
-def _drive(mcu: Mcu, model, data, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int) -> None:
+def _drive(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int) -> None:
     """The lap: button B held until the firmware runs, then chunks judged until the lap ends."""
     consumed, pressed = 0, True
     rows = core.records_view(data.userdata)
