@@ -72,8 +72,7 @@ enum { LF_AVR_RUNNING = 0, LF_AVR_STALLED = 1, LF_AVR_REFUSED = 2 };
 
 typedef struct lf_avr lf_avr;
 typedef struct {
-  lf_avr *owner;
-  int32_t index;
+  int32_t index; /* a sensor, for its cycle timer's callback */
 } sensor_ref;
 
 /* The MCU's figures for the run so far (Python: twin.pil.McuStatus). */
@@ -299,7 +298,7 @@ lf_avr *lf_avr_open(const char *elf_path, const char *mmcu, uint32_t f_cpu, char
     avr_register_io_write(a->avr, motors[i].ocra, on_compare_write, a);
     avr_register_io_write(a->avr, motors[i].ocrb, on_compare_write, a);
   }
-  for (i = 0; i < LF_BOARD_MAX_SENSORS; i++) a->refs[i].owner = a, a->refs[i].index = i;
+  for (i = 0; i < LF_BOARD_MAX_SENSORS; i++) a->refs[i].index = i;
   a->a_state = symbol(a, "fw_state");
   a->a_raw = symbol(a, "fw_raw_us");
   a->a_tick_mode = symbol(a, "fw_tick_mode");
