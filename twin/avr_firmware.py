@@ -143,8 +143,10 @@ def check_elf(path: str, need: tuple[str, ...] = ()) -> ElfInfo:
     from elftools.common.exceptions import ELFError
     from elftools.elf.elffile import ELFFile
 
+    if os.path.isdir(path):
+        raise TwinError(f"{path}: is a folder; --firmware takes c, avr or an ELF file")
     if not os.path.isfile(path):
-        raise TwinError(f"{path}: no such firmware file")
+        raise TwinError(f"{path}: no such firmware file; --firmware takes c, avr or an ELF file")
     try:
         with open(path, "rb") as f:
             elf = ELFFile(f)
