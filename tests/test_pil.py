@@ -271,3 +271,25 @@ def test_firmware_command_writes_what_avrdude_flashes(pil_ready, tmp_path):
     (out / "notes.txt").write_text("mine")  # a folder that now holds the user's file is not replaced
     again = cli("firmware", "--out-dir", str(out))
     assert again.returncode == 2 and (out / "notes.txt").read_text() == "mine"
+
+
+def test_an_mcu_attached_before_the_physics_stepped_reads_a_dark_floor(pil_ready, default_twin):
+    """mj_ray stops the whole process on a sensor without a pose: the glue reads no light instead."""
+    import mujoco
+
+    from twin import pil
+    from twin.mcu import Mcu
+    from twin.variant import Variant
+
+    lap = Variant.of(default_twin, {})
+    model = default_twin.model()
+    data = mujoco.MjData(model)
+    data.site_xmat[:] = 0.0  # as before any mj_step1 or mj_forward
+    with Mcu(fw.check_elf(fw.build("robot"), fw.TRACE_SYMBOLS)) as mcu:
+        mcu.eeprom(fw.config_image(lap.params, lap.sensor.timeout_us, 2))
+        sim = pil._place(model, data, default_twin, lap, 0)
+        data.site_xmat[:] = 0.0
+        mcu.attach(model, data, sim, 1.0)
+        assert mcu.run_cycles(2_000_000) == 0  # 0.1 s: about 20 reads
+        raw = np.frombuffer(mcu.peek("fw_raw_us", 2 * lap.params.count), dtype="<u2")
+        assert (raw >= int(lap.sensor.timeout_us) - 2).all(), raw  # timed out: no light came back

@@ -200,6 +200,12 @@ static avr_cycle_count_t line_falls(avr_t *avr, avr_cycle_count_t when, void *pa
   return 0;
 }
 
+/* Whether sensor i's site has a pose (mj_step1 or mj_forward ran): mj_ray stops the process on a zero direction. */
+static int kinematics_ready(const lf_avr *a, int32_t i) {
+  const mjtNum *xmat = a->d->site_xmat + 9 * a->s->sensor_site[i];
+  return xmat[2] * xmat[2] + xmat[5] * xmat[5] + xmat[8] * xmat[8] > 0.5;
+}
+
 /* DDR written: a sensor line that was driven high and is now an input starts to decay. */
 static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
   lf_avr *a = (lf_avr *)param;
@@ -223,8 +229,8 @@ static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
     a->released[i] = a->avr->cycle;
     avr_cycle_timer_cancel(a->avr, line_falls, &a->refs[i]);
     if (!(reg(a, port_of[port]) & bit)) continue; /* released low: nothing was charged, the line stays low */
-    if (!a->s) { /* no physics attached: a dark floor */
-      raw_us = 2500.0;
+    if (!a->s || !kinematics_ready(a, i)) { /* no physics attached, or not yet stepped: a dark floor */
+      raw_us = a->s ? a->s->sensor.timeout_us : 2500.0;
     } else {
       double height = lf_read_sensor(a->m, a->d, a->s, i);
       int emitters = (reg(a, ddr_of[LF_EMITTER_PORT]) >> LF_EMITTER_PIN) & (reg(a, port_of[LF_EMITTER_PORT]) >> LF_EMITTER_PIN) & 1;
