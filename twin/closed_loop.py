@@ -153,12 +153,12 @@ class Fleet:
         for i in ids:
             if self.judges[i].done:
                 continue
-            sim, capacity = self.sims[i], self.sims[i].record_capacity
-            written = sim.records_written
-            if written - self.consumed[i] > capacity:
-                raise TwinError(f"lap {i}: trace ring overflowed ({written - self.consumed[i]} records for {capacity} slots)")
-            self.judges[i].feed(core.records_view(rows[i])[np.arange(self.consumed[i], written) % capacity])
-            self.consumed[i] = written
+            try:
+                records = core.records_since(rows[i], self.sims[i], int(self.consumed[i]))
+            except TwinError as e:
+                raise TwinError(f"lap {i}: {e}") from None
+            self.judges[i].feed(records)
+            self.consumed[i] = self.sims[i].records_written
 
 
 def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: ControlParams, sensor, seed: int,

@@ -304,6 +304,15 @@ def records_view(userdata_row: np.ndarray) -> np.ndarray:
     return userdata_row[SIM_WORDS:].reshape(-1, RECORD_WORDS)
 
 
+def records_since(userdata_row: np.ndarray, sim: Sim, consumed: int) -> np.ndarray:
+    """The trace records written since the first ``consumed``, in order; TwinError if the ring has overwritten
+    some of them (more were written than it holds)."""
+    written, capacity = sim.records_written, sim.record_capacity
+    if written - consumed > capacity:
+        raise TwinError(f"trace ring overflowed ({written - consumed} records for {capacity} slots)")
+    return records_view(userdata_row)[np.arange(consumed, written) % capacity]
+
+
 def params_to_c(p) -> Params:
     """A :class:`twin.controller.ControlParams` as ``lf_params``."""
     return Params(**{f[0]: getattr(p, f[0]) for f in Params._fields_})

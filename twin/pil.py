@@ -71,6 +71,17 @@ def stall_limit_s(dt_s: float) -> float:
     return max(0.1, 10 * dt_s)
 
 
+def runnable_firmware(twin: DigitalTwin, elf_path: str | None = None) -> fw.ElfInfo:
+    """The ELF (default: built from twin/csrc/firmware/avr), checked against the twin's parameters, the board and
+    the simavr glue; TwinError naming the problem otherwise."""
+    fw.check_config(twin.control_params(), twin.sensor_model().timeout_us)
+    elf = fw.check_elf(elf_path or fw.build("robot"), need=fw.TRACE_SYMBOLS)
+    if elf.sizes["fw_state"] != state_size():  # state_size() loads the glue: a missing simavr is said here
+        raise TwinError(f"{elf.path}: its fw_state is {elf.sizes['fw_state']} bytes, the twin reads {state_size()}: it was "
+                        "built from another version of line_follower.h")
+    return elf
+
+
 def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, limits: LapLimits = LapLimits(),
                 keep_trace: bool = True, on_line: Callable[[float, str], None] | None = None,
                 telemetry_every: int = TELEMETRY_EVERY) -> tuple[LapResult, McuReport]:
@@ -82,11 +93,7 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
     check_seed(seed)
     lap = Variant.of(twin, {})
     params, sensor = lap.params, lap.sensor
-    fw.check_config(params, sensor.timeout_us)
-    elf = fw.check_elf(elf_path or fw.build("robot"), need=fw.TRACE_SYMBOLS)
-    if elf.sizes["fw_state"] != state_size():
-        raise TwinError(f"{elf.path}: its fw_state is {elf.sizes['fw_state']} bytes, the twin reads {state_size()}: it was "
-                        "built from another version of line_follower.h")
+    elf = runnable_firmware(twin, elf_path)
     model = twin.model()
     data = mujoco.MjData(model)
     judge = LapJudge(twin.track, limits, keep_trace)
@@ -210,19 +217,17 @@ def _calibrate(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, te
 def _drive(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int) -> None:
     """The lap: button B held until the firmware runs, then chunks judged until the lap ends."""
     consumed, pressed = 0, True
-    rows = core.records_view(data.userdata)
     while not judge.done:
         failure = _advance(mcu, data, telemetry, steps)
         if pressed and mcu.state().mode == RUN:
             mcu.button(False)
             pressed = False
-        written = sim.records_written
-        if written - consumed > sim.record_capacity:
-            judge.fail(REFUSED, f"trace ring overflowed ({written - consumed} records for {sim.record_capacity})",
-                       float(data.time), float(sim.energy_j))
+        try:
+            judge.feed(core.records_since(data.userdata, sim, consumed))
+        except TwinError as e:
+            judge.fail(REFUSED, str(e), float(data.time), float(sim.energy_j))
             return
-        judge.feed(rows[np.arange(consumed, written) % sim.record_capacity])
-        consumed = written
+        consumed = sim.records_written
         if failure:  # after the chunk's ticks: a lap completed before the firmware stalled is completed
             judge.fail(*failure, float(data.time), float(sim.energy_j))
             return

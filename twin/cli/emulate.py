@@ -11,6 +11,7 @@ from twin.cli.output import Output
 from twin.emulator import (NoReader, accept, check_link_path, drain_pty, firmware_lap_records, lap_records, open_pty,
                            pty_writer, release_link, serve_tcp, stream)
 from twin.errors import TwinError
+from twin.pil import runnable_firmware
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
 
@@ -63,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
             lines = lap_records(twin, args.seed, args.every, args.laps)
         else:
             elf = None if args.firmware == "avr" else args.firmware
-            _check_firmware(twin, elf)  # a bad ELF or a missing simavr fails now, not when the first reader comes
+            runnable_firmware(twin, elf)  # a bad ELF or a missing simavr fails now, not when the first reader comes
             lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps)
         echo = echo_file.write if echo_file else None
         if args.tcp is not None:
@@ -76,16 +77,6 @@ def run(args: argparse.Namespace) -> int:
         if echo_file:
             echo_file.close()
     return 0
-
-
-def _check_firmware(twin, elf: str | None) -> None:
-    from twin import avr_firmware
-    from twin.mcu import glue
-
-    glue()
-    params = twin.control_params()
-    avr_firmware.check_config(params, twin.sensor_model().timeout_us)
-    avr_firmware.check_elf(elf or avr_firmware.build("robot"), need=avr_firmware.TRACE_SYMBOLS)
 
 
 def _serve_tcp(args, lines, echo, out: Output) -> None:

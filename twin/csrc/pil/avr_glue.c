@@ -45,6 +45,7 @@ enum { PINB = 0x23, DDRB = 0x24, PORTB = 0x25, PINC = 0x26, DDRC = 0x27, PORTC =
        OCR2A = 0xB3, OCR2B = 0xB4 };
 static const uint8_t ddr_of[3] = {DDRB, DDRC, DDRD}, port_of[3] = {PORTB, PORTC, PORTD};
 static const char name_of[3] = {'B', 'C', 'D'};
+static const int sensor_pins[LF_BOARD_MAX_SENSORS][2] = LF_SENSOR_PINS; /* {port, bit} of sensor i */
 
 /* A motor's two control lines: line A on the timer's compare output A, line B on B (board_3pi.h). */
 typedef struct {
@@ -194,9 +195,8 @@ static void on_compare_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *pa
 
 static avr_cycle_count_t line_falls(avr_t *avr, avr_cycle_count_t when, void *param) {
   sensor_ref *r = (sensor_ref *)param;
-  static const int pins[LF_BOARD_MAX_SENSORS][2] = LF_SENSOR_PINS;
   (void)when;
-  avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ(name_of[pins[r->index][0]]), pins[r->index][1]), 0);
+  avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ(name_of[sensor_pins[r->index][0]]), sensor_pins[r->index][1]), 0);
   return 0;
 }
 
@@ -209,7 +209,6 @@ static int kinematics_ready(const lf_avr *a, int32_t i) {
 /* DDR written: a sensor line that was driven high and is now an input starts to decay. */
 static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
   lf_avr *a = (lf_avr *)param;
-  static const int pins[LF_BOARD_MAX_SENSORS][2] = LF_SENSOR_PINS;
   int port = -1, i;
   uint8_t before;
   for (i = 0; i < 3; i++)
@@ -223,9 +222,9 @@ static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
     drive_update(a, 1);
   }
   for (i = 0; i < a->nsensor; i++) {
-    uint8_t bit = (uint8_t)(1u << pins[i][1]);
+    uint8_t bit = (uint8_t)(1u << sensor_pins[i][1]);
     double raw_us;
-    if (pins[i][0] != port || !(before & bit) || (value & bit)) continue;
+    if (sensor_pins[i][0] != port || !(before & bit) || (value & bit)) continue;
     a->released[i] = a->avr->cycle;
     avr_cycle_timer_cancel(a->avr, line_falls, &a->refs[i]);
     if (!(reg(a, port_of[port]) & bit)) continue; /* released low: nothing was charged, the line stays low */
@@ -505,10 +504,9 @@ int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep) {
       return stalled(a, why);
     }
     for (i = 0; i < a->nsensor; i++) {
-      static const int pins[LF_BOARD_MAX_SENSORS][2] = LF_SENSOR_PINS;
-      if (a->avr->cycle - a->released[i] > a->stall_cycles) {
-        snprintf(why, sizeof why, "sensor %d's line (P%c%d) was not released for %.3g s", i, name_of[pins[i][0]],
-                 pins[i][1], (double)(a->avr->cycle - a->released[i]) / a->f_cpu);
+          if (a->avr->cycle - a->released[i] > a->stall_cycles) {
+        snprintf(why, sizeof why, "sensor %d's line (P%c%d) was not released for %.3g s", i, name_of[sensor_pins[i][0]],
+                 sensor_pins[i][1], (double)(a->avr->cycle - a->released[i]) / a->f_cpu);
         return stalled(a, why);
       }
     }
