@@ -1,12 +1,12 @@
 """Build hook: setuptools reads pyproject.toml; the twin's C core is declared here.
 
-``twin._lfavr`` (built when simavr's headers are installed) adds the processor-in-the-loop glue
+``twin.pil._lfavr`` (built when simavr's headers are installed) adds the processor-in-the-loop glue
 (``twin/csrc/pil``), linked against libsimavr.
 
-``twin._lfcore`` is a plain shared library loaded with ctypes (it has no Python module init): the
+``twin.core._lfcore`` is a plain shared library loaded with ctypes (it has no Python module init): the
 firmware (``twin/csrc/firmware``, the robot's own C) and the MuJoCo control callback (``twin/csrc/sim``).
 It reads mjModel/mjData fields, so it compiles against the headers of the installed ``mujoco`` wheel;
-``twin.core`` checks at load time that the runtime MuJoCo matches.
+``twin.core.native`` checks at load time that the runtime MuJoCo matches.
 """
 
 import glob
@@ -35,7 +35,7 @@ FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra"]
 # the processor-in-the-loop glue: the same core plus simavr, in its own library so the twin works without simavr
 pil = [
     Extension(
-        "twin._lfavr",
+        "twin.pil._lfavr",
         sources=sources + ["twin/csrc/pil/avr_glue.c"],
         include_dirs=[mujoco_include(), "twin/csrc"],
         extra_compile_args=FLAGS,
@@ -47,7 +47,7 @@ pil = [
 setup(
     ext_modules=[
         Extension(
-            "twin._lfcore",
+            "twin.core._lfcore",
             sources=sources,
             include_dirs=[mujoco_include(), "twin/csrc"],
             extra_compile_args=FLAGS,

@@ -15,12 +15,12 @@ import os
 import tempfile
 import time
 
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
-from twin.telemetry import lap_lines, read_telemetry, write_telemetry
-from tuner.align import align_lap_time
-from tuner.align_trace import align_telemetry
-from tuner.design import DEFAULT_GRID, grid, study
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+from twin.telemetry.jsonl import lap_lines, read_telemetry, write_telemetry
+from tuner.align.lap_time import align_lap_time
+from tuner.align.trace import align_telemetry
+from tuner.studies.design import DEFAULT_GRID, grid, study
 
 FAST = {"control.v_max": 1.5, "control.kb": 0.1247, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
 MODERATE = {"control.v_max": 1.0, "control.kb": 0.3, "control.kp": 25.0, "control.kd": 0.5}

@@ -1,12 +1,12 @@
 """Closed-loop throughput: the C firmware in MuJoCo's control callback against its ceiling and against Python.
 
 Measured in one run on the default robot and track (shared machines are noisy; compare the ratios):
-  * closed loop: ``twin.closed_loop.run_laps`` (calibration + one lap, C callback, trace drained per chunk,
+  * closed loop: ``twin.core.closed_loop.run_laps`` (calibration + one lap, C callback, trace drained per chunk,
                  the lap judged in Python between chunks)
   * ceiling:     the same voltages replayed open-loop by ``mujoco.batch`` rollouts, no callback: the same
                  physics step by step (the replayed path is checked against the closed loop's), nothing else
   * Python loop: the same model stepped with ``mujoco.mj_step`` from Python, with the sensors (``mj_ray``,
-                 footprint, response: line_sensor.reflectance) and the firmware (Eqs. 8–11: twin.controller)
+                 footprint, response: line_sensor.reflectance) and the firmware (Eqs. 8–11: twin.model.control)
                  in Python every Δt — the references the C is tested against
 All on one thread, timed in CPU time of that thread (``time.thread_time``) with the garbage collector off, as
 ``timeit`` does: on a shared machine wall time swings ±15 % between identical runs, CPU time a few %.
@@ -28,10 +28,10 @@ import numpy as np
 
 from line_sensor.reflectance import NoiseSource, footprint_reflectance
 from mjcf.world import LINE_SENSOR, MOTORS, START_KEY
-from twin.lap import COL
-from twin import controller as ref
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
+from twin.core.lap import COL
+from twin.model import control as ref
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
 
 
 def closed_loop(twin: DigitalTwin) -> tuple[float, object]:

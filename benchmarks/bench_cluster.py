@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from tuner.design import grid, study
+from tuner.studies.design import grid, study
 
 BASE = {"track": "oval", "metres_per_pixel": None, "values": {}}
 
@@ -46,7 +46,7 @@ def on_ray(n: int, cpus: int, laps: int, max_iter: int) -> tuple[float, float, l
     """(study wall time, head start-up time, results) on a fresh local Ray head with ``cpus`` CPUs."""
     import ray
 
-    from tuner.cluster import local_head, study_on_ray, wait_for_cluster
+    from tuner.studies.cluster import local_head, study_on_ray, wait_for_cluster
 
     with tempfile.TemporaryDirectory(prefix="ray") as temp:
         t0 = time.perf_counter()

@@ -1,9 +1,9 @@
 """Processor in the loop against real time: the robot's ATmega328P binary in simavr, in lockstep with MuJoCo.
 
 Measured in one run on the default robot and track (shared machines are noisy; compare the ratios):
-  * PIL lap:  ``twin.pil.run_pil_lap`` (power-up, the firmware's calibration turn, the lap), one thread: simulated
+  * PIL lap:  ``twin.pil.lap.run_pil_lap`` (power-up, the firmware's calibration turn, the lap), one thread: simulated
               seconds (turn + lap) per CPU second of that thread
-  * C lap:    ``twin.closed_loop.run_laps`` on one thread, the same phases, for scale
+  * C lap:    ``twin.core.closed_loop.run_laps`` on one thread, the same phases, for scale
   * MCU only: the firmware run free for the same simulated time with the physics attached but not stepped, to
               split the PIL lap's cost between simavr and MuJoCo
 Timed in CPU time of the thread (``time.thread_time``) with the garbage collector off, best of --repeat.
@@ -21,13 +21,13 @@ import time
 
 import mujoco
 
-from twin import avr_firmware as fw
-from twin import pil
-from twin.closed_loop import run_laps
-from twin.controller import calibration_ticks
-from twin.digital_twin import DigitalTwin
-from twin.mcu import Mcu
-from twin.variant import Variant
+from twin.pil import firmware as fw
+from twin.pil import lap as pil
+from twin.core.closed_loop import run_laps
+from twin.model.control import calibration_ticks
+from twin.core.digital_twin import DigitalTwin
+from twin.pil.mcu import Mcu
+from twin.core.variant import Variant
 
 
 def best(fn, repeat: int):

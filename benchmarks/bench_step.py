@@ -21,7 +21,7 @@ import mujoco.batch
 import numpy as np
 
 from mjcf.world import MOTORS
-from twin.digital_twin import DigitalTwin
+from twin.core.digital_twin import DigitalTwin
 
 
 def serial_rate(model: mujoco.MjModel, nstep: int) -> float:

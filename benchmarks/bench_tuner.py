@@ -5,7 +5,7 @@
     wall time (target: same or better lap time in at least 5× less wall time)
   * the tuned lap time against an independent global search: CMA-ES (``cma``), its populations evaluated as
     batches of laps over the same five gains, bounds and objective (target: within 3 %)
-  * robust tuning with the ``--robust`` preset (tuner.envelope): wall time (target < 90 s on 2 cores), laps, and
+  * robust tuning with the ``--robust`` preset (tuner.search.envelope): wall time (target < 90 s on 2 cores), laps, and
     the completion rate over the envelope's corners on 20 held-out seeds (target 100 %) against the plain gains'
     rate; the price of robustness: the nominal lap of the robust gains against the plain gains'
 
@@ -23,12 +23,12 @@ import warnings
 
 import numpy as np
 
-from tuner.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk, held_out_seeds
-from tuner.gradient import DescentOptions, descend, sequential
-from tuner.objective import LapObjective
-from tuner.space import SearchSpace
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
+from tuner.search.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk, held_out_seeds
+from tuner.search.gradient import DescentOptions, descend, sequential
+from tuner.search.objective import LapObjective
+from tuner.search.space import SearchSpace
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
 
 HELD_OUT = 20
 

@@ -3,7 +3,7 @@
     .venv/bin/python docs/make_figures.py            # about 4 minutes on 2 cores
 
 * ``lap_viewer.png``: ``twin.run lap --save`` opened in rerun's web viewer (headless Chromium, see
-  :mod:`twin.web_viewer`; needs Debian's ``chromium`` and the ``test`` extra's Playwright).
+  :mod:`twin.viz.web_viewer`; needs Debian's ``chromium`` and the ``test`` extra's Playwright).
 * ``tuning_trace.png``: ``python -m tuner --robust --json``: the cost and each scenario's worst lap per iteration.
 * ``design_lap_times.png``, ``design_pareto.png``: the charts ``twin.run design`` writes.
 
@@ -44,7 +44,7 @@ def run(args: list[str], what: str) -> str:
 
 
 def lap_in_viewer(work: str, out: str) -> None:
-    from twin.web_viewer import headless_chromium, screenshot_when_settled, served
+    from twin.viz.web_viewer import headless_chromium, screenshot_when_settled, served
 
     rrd = os.path.join(work, "lap.rrd")
     run(["lap", "--save", rrd, "--json"], "a lap")

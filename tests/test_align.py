@@ -6,9 +6,9 @@ import json
 
 import pytest
 
-from tuner.align import align_lap_time
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
+from tuner.align.lap_time import align_lap_time
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
 from twin.run import main
 
 FAST = {"control.v_max": 1.5, "control.kb": 0.1247, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}

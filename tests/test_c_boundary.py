@@ -17,12 +17,12 @@ import time
 import pytest
 
 from line_sensor.geometry import MAX_SENSORS
-from twin import controller as ref
-from twin import core
-from twin.closed_loop import CHUNK_TICKS, MIN_CHUNK_TICKS, chunk_ticks, run_laps
-from twin.digital_twin import DigitalTwin
+from twin.model import control as ref
+from twin.core import native as core
+from twin.core.closed_loop import CHUNK_TICKS, MIN_CHUNK_TICKS, chunk_ticks, run_laps
+from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
-from twin.lap import LapLimits
+from twin.core.lap import LapLimits
 
 CSRC = os.path.join(os.path.dirname(__file__), "..", "twin", "csrc")
 
@@ -43,7 +43,7 @@ def twin():
     return DigitalTwin()
 
 
-# --- layout: every mirrored field, checked when twin.core loads
+# --- layout: every mirrored field, checked when twin.core.native loads
 def test_the_library_layout_is_the_mirror():
     c = core.library_layout(core.lib)
     ours = core.mirrors()
@@ -95,9 +95,9 @@ def test_python_and_c_agree_on_the_limits():
 REFUSE = r"""
 import json, sys
 import mujoco
-from twin import core
-from twin.closed_loop import setup
-from twin.digital_twin import DigitalTwin
+from twin.core import native as core
+from twin.core.closed_loop import setup
+from twin.core.digital_twin import DigitalTwin
 
 case = sys.argv[1]
 twin = DigitalTwin()
@@ -161,8 +161,8 @@ def test_a_head_that_does_not_fit_is_refused_untouched(case, code):
 
 FORGED_LAP = r"""
 import json
-from twin import closed_loop
-from twin.digital_twin import DigitalTwin
+from twin.core import closed_loop
+from twin.core.digital_twin import DigitalTwin
 
 setup = closed_loop.setup
 def forged(row, model, *args):
@@ -300,8 +300,8 @@ def test_the_turn_limit_is_simulated_time(twin):
 HEAVY = r"""
 import json, logging
 logging.basicConfig(level=logging.WARNING, format="LOG %(name)s %(message)s")
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
 twin = DigitalTwin()
 twin.model().body_mass[:] = 1e300
 r = run_laps(twin, [{}, {"control.kp": 20.0}, {"motion.mu": 0.5}], nthread=2, keep_traces=False)

@@ -10,12 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
-from twin.telemetry import lap_lines, read_telemetry, telemetry_header, write_telemetry
-from tuner.align import align_lap_time
-from tuner.align_trace import align_telemetry
-from tuner.diagnose import diagnose
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+from twin.telemetry.jsonl import lap_lines, read_telemetry, telemetry_header, write_telemetry
+from tuner.align.lap_time import align_lap_time
+from tuner.align.trace import align_telemetry
+from tuner.align.diagnose import diagnose
 
 ROBUST = {"control.v_max": 1.008, "control.kb": 0.1857, "control.kp": 18.5984, "control.ki": 0.0051,
           "control.kd": 0.3053}

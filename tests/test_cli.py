@@ -15,8 +15,8 @@ import pytest
 
 from twin.cli import main as front_door
 from twin.cli import robot, tune
-from twin.emulator import lap_records
-from twin.digital_twin import DigitalTwin
+from twin.link.emulator import lap_records
+from twin.core.digital_twin import DigitalTwin
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGES = ("lf_common", "mjcf", "motors", "line_sensor", "twin", "tuner")

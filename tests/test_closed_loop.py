@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from mjcf.track import builtin
-from twin import core
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
+from twin.core import native as core
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
-from twin.lap import COL, LapJudge, LapLimits
+from twin.core.lap import COL, LapJudge, LapLimits
 from twin.run import main
 
 
@@ -226,7 +226,7 @@ def test_c_lap_progress_equals_track_locate():
     """lf_locate (the C loop's incremental search) against Track.locate (k-d tree) along a wandering path."""
     import ctypes
 
-    from twin.digital_twin import centre_line_data
+    from twin.core.digital_twin import centre_line_data
 
     track = builtin("default")
     data = np.ascontiguousarray(centre_line_data(track))

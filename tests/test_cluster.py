@@ -19,8 +19,8 @@ if os.environ.get("CI"):
 else:
     pytest.importorskip("ray")
 
-from tuner.cluster import local_head, study_on_ray
-from tuner.design import grid, study
+from tuner.studies.cluster import local_head, study_on_ray
+from tuner.studies.design import grid, study
 
 RUN = [sys.executable, "-m", "twin.run"]
 DESIGNS = {"cad.S": (0.05, 0.07)}

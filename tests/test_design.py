@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from tuner.design import DesignResult, grid, pareto, study, trend
+from tuner.studies.design import DesignResult, grid, pareto, study, trend
 from twin.run import main
 
 

@@ -153,7 +153,7 @@ def test_json_inputs_are_bounded_and_errors_are_one_line(tmp_path):
 
 def _build_robot(cache: str) -> str:
     os.environ["TWIN_CACHE_DIR"] = cache
-    from twin.digital_twin import DigitalTwin
+    from twin.core.digital_twin import DigitalTwin
 
     return open(DigitalTwin(track="oval")._urdf()).read()
 
@@ -192,8 +192,8 @@ def test_a_swapped_cached_mesh_or_texture_does_not_change_the_lap(tmp_path, monk
     monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))
     from PIL import Image
 
-    from twin.closed_loop import run_laps
-    from twin.digital_twin import DigitalTwin
+    from twin.core.closed_loop import run_laps
+    from twin.core.digital_twin import DigitalTwin
 
     reference = run_laps(DigitalTwin(track="oval"), [{}], seed=0)[0]
     robots = tmp_path / "cache" / "robots"

@@ -12,8 +12,8 @@ import subprocess
 import pytest
 
 from line_sensor.processing import read_calibrated, read_line, line_angle
-from twin import controller as ref
-from twin.core import FwState, lib, params_to_c
+from twin.model import control as ref
+from twin.core.native import FwState, lib, params_to_c
 
 FIRMWARE = os.path.join(os.path.dirname(__file__), "..", "twin", "csrc", "firmware")
 PITCH, S = 0.009525, 0.040
@@ -153,8 +153,7 @@ def test_c_line_angle_and_duties_equal_python():
 # --- the robot's MCU
 def test_firmware_builds_for_atmega328p(capsys):
     """The robot's whole program (drivers, calibration, Eqs. 8–11, telemetry, soft-float library) for the 3pi."""
-    from twin import avr_firmware
-
+    from twin.pil import firmware as avr_firmware
     if not (shutil.which("avr-gcc") and shutil.which("avr-size")):
         if os.environ.get("CI"):
             pytest.fail("avr-gcc is missing: .ci/run installs gcc-avr and avr-libc")
@@ -179,7 +178,7 @@ def test_eeprom_configuration_image_layout():
     """config.h by hand: magic, size, lf_params as 32-bit floats, timeout, rate, CRC-16/XMODEM."""
     import struct
 
-    from twin.avr_firmware import CONFIG_BYTES, config_image, intel_hex
+    from twin.pil.firmware import CONFIG_BYTES, config_image, intel_hex
 
     image = config_image(params(), 2500, 2)
     assert len(image) == CONFIG_BYTES == 80
@@ -196,8 +195,8 @@ def test_eeprom_configuration_image_layout():
 
 
 def test_c_wire_lines_equal_the_python_encoding():
-    """The firmware's telemetry lines (lf_wire.c) are byte for byte what twin.wire encodes and decodes."""
-    from twin.wire import Event, Header, Sample, decode, encode
+    """The firmware's telemetry lines (lf_wire.c) are byte for byte what twin.telemetry.wire encodes and decodes."""
+    from twin.telemetry.wire import Event, Header, Sample, decode, encode
 
     buf = ctypes.create_string_buffer(96)
     rng = random.Random(2)

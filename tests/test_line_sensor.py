@@ -11,7 +11,7 @@ import pytest
 
 from line_sensor.reflectance import NoiseSource, SensorModel, footprint_reflectance
 from mjcf.track import GROUND_GREY, LINE_GREY, Track, builtin
-from twin.core import Texture, lib, sensor_to_c
+from twin.core.native import Texture, lib, sensor_to_c
 
 
 @pytest.fixture(scope="module")

@@ -20,13 +20,15 @@ import types
 
 import pytest
 
-import tuner.live
-from tuner.live import LapAssembler, LiveOptions, LiveTwin, replay_log, resume
+import tuner.live.live_twin
+from tuner.live.live_twin import LiveOptions, LiveTwin
+from tuner.live.replay import replay_log, resume
+from twin.telemetry.laps import LapAssembler
 from twin.cli.main import main
-from twin.digital_twin import DigitalTwin
-from twin.emulator import lap_records
-from twin.link import DurableLog, LinkStats
-from twin.wire import Event, Header, LineSplitter, Sample, WireError, decode, encode
+from twin.core.digital_twin import DigitalTwin
+from twin.link.emulator import lap_records
+from twin.link.reader import DurableLog, LinkStats
+from twin.telemetry.wire import Event, Header, LineSplitter, Sample, WireError, decode, encode
 
 RUN = [sys.executable, "-m", "twin.run"]
 OVAL = ["--track", "oval"]
@@ -513,11 +515,11 @@ def test_implausible_laps_are_in_the_json_and_on_stderr(tmp_path, capsys):
 
 
 def test_a_successful_alignment_is_info_not_warning(monkeypatch, caplog):
-    monkeypatch.setattr(tuner.live, "align_lap_time", lambda twin, measured, address, bounds, seed: types.SimpleNamespace(
+    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed: types.SimpleNamespace(
         explained=True, value=0.5, message="explained"))
     twin = DigitalTwin(track="oval")
     live = LiveTwin(twin, LiveOptions(threshold=1e-6, k_laps=1))
-    caplog.set_level(logging.INFO, logger="tuner.live")
+    caplog.set_level(logging.INFO, logger="tuner.live.live_twin")
     for line in lap_lines(9.5):
         live.feed(decode(line))
     live.finish()

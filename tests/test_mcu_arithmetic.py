@@ -17,8 +17,8 @@ import struct
 import numpy as np
 import pytest
 
-from twin import controller as ref
-from twin.core import FwState, lib, params_to_c
+from twin.model import control as ref
+from twin.core.native import FwState, lib, params_to_c
 
 pytestmark = pytest.mark.usefixtures("mcu_selftest")
 EPS32 = 2.0**-24
@@ -40,9 +40,9 @@ def f32(x: float) -> float:
 
 @pytest.fixture(scope="module")
 def mcu_selftest():
-    from twin import avr_firmware
+    from twin.pil import firmware as avr_firmware
     from twin.errors import TwinError
-    from twin.mcu import Mcu
+    from twin.pil.mcu import Mcu
 
     try:
         elf = avr_firmware.check_elf(avr_firmware.build("selftest"))

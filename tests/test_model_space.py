@@ -7,8 +7,10 @@ import sys
 import pytest
 
 from line_sensor import SensorArray
-from twin import ChangeCost, DigitalTwin, TwinError
-from twin.models import default_space
+from twin import TwinError
+from twin.core import DigitalTwin
+from twin.model import ChangeCost
+from twin.model.partial_models import default_space
 
 
 def test_every_parameter_has_one_address_and_a_unit():

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from mjcf.world import AXLE_SITE, MOTORS
-from twin.digital_twin import DigitalTwin
+from twin.core.digital_twin import DigitalTwin
 
 
 @pytest.fixture

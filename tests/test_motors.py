@@ -130,7 +130,7 @@ def test_catalogue_max_power_matches_the_printed_column():
 
 def test_every_catalogue_motor_fits_the_model_space_and_its_figures():
     from motors.catalogue import CATALOGUE
-    from twin.models import default_space
+    from twin.model.partial_models import default_space
 
     space = default_space()
     for name, d in CATALOGUE.items():

@@ -21,7 +21,7 @@ from mjcf.errors import MjcfError
 from mjcf.robot_config import RobotConfig
 from mjcf.robot_source import find_package, read_description
 from mjcf.urdf_to_mjcf import DEFAULT_DENSITY, convert
-from twin.digital_twin import DigitalTwin
+from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 
 RUN = [sys.executable, "-m", "twin.run"]
@@ -231,7 +231,7 @@ def test_a_heavy_robot_gets_a_motor_that_moves_it_and_says_so(tmp_path, third_pa
 
 
 def test_tuner_bounds_follow_the_robot(xacro_path):
-    from tuner.space import DEFAULT_BOUNDS, robot_bounds
+    from tuner.search.space import DEFAULT_BOUNDS, robot_bounds
 
     twin = DigitalTwin(track="oval", robot_urdf=xacro_path, robot_config=RobotConfig(sensor_mount=MOUNT))
     b = robot_bounds(twin)
@@ -252,7 +252,7 @@ def test_unknown_motor_lists_the_catalogue(xacro_path):
     ({"control.cal_sweep": 0.25}, r"likely turn too short: .* ±0\.82 rad, the turn goes ±0\.25 rad"),
 ])
 def test_calibration_failures_name_their_cause(changes, cause):
-    from twin.closed_loop import run_laps
+    from twin.core.closed_loop import run_laps
 
     twin = DigitalTwin(track="oval")
     twin.update(changes)

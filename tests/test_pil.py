@@ -1,4 +1,4 @@
-"""Processor in the loop: the robot's ATmega328P binary in simavr, in lockstep with MuJoCo (twin.pil, twin/csrc/pil).
+"""Processor in the loop: the robot's ATmega328P binary in simavr, in lockstep with MuJoCo (twin.pil.lap, twin/csrc/pil).
 
 * The firmware-in-the-loop lap against the C-callback lap (the issue's 1 % bound), and its trace against the host
   build of the same firmware fed the readings the MCU measured.
@@ -21,10 +21,10 @@ import time
 import numpy as np
 import pytest
 
-from twin import avr_firmware as fw
-from twin.closed_loop import run_laps
-from twin.controller import RUN
-from twin.core import FwState, lib, params_to_c
+from twin.pil import firmware as fw
+from twin.core.closed_loop import run_laps
+from twin.model.control import RUN
+from twin.core.native import FwState, lib, params_to_c
 from twin.errors import TwinError
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -35,7 +35,7 @@ RUN_CLI = [sys.executable, "-m", "twin.run"]
 def pil_ready():
     """avr-gcc and simavr's glue, or a skip (a failure in CI, which installs both)."""
     try:
-        from twin.mcu import glue
+        from twin.pil.mcu import glue
 
         glue()
         fw.build("robot")
@@ -48,7 +48,7 @@ def pil_ready():
 @pytest.fixture(scope="module")
 def laps(pil_ready, default_twin):
     """The default robot's lap with default gains: the C callback's and the firmware binary's, seed 0."""
-    from twin.pil import run_pil_lap
+    from twin.pil.lap import run_pil_lap
 
     c_lap = run_laps(default_twin, [{}], seed=0)[0]
     t0 = time.perf_counter()
@@ -58,7 +58,7 @@ def laps(pil_ready, default_twin):
 
 @pytest.fixture(scope="module")
 def default_twin():
-    from twin.digital_twin import DigitalTwin
+    from twin.core.digital_twin import DigitalTwin
 
     return DigitalTwin(track="default")
 
@@ -139,7 +139,7 @@ def test_mcu_figures_are_consistent(laps):
 
 
 def test_same_seed_same_trace_bit_for_bit(laps, default_twin):
-    from twin.pil import run_pil_lap
+    from twin.pil.lap import run_pil_lap
 
     _, first, _, _ = laps
     again, _ = run_pil_lap(default_twin, seed=0)
@@ -164,7 +164,7 @@ def build_fault(tmp_path, fault: int) -> str:
     (4, "the MCU stopped"),
 ])
 def test_a_stalled_firmware_is_a_lap_result_not_a_hang(pil_ready, default_twin, tmp_path, fault, needle):
-    from twin.pil import STALLED, run_pil_lap, stall_limit_s
+    from twin.pil.lap import STALLED, run_pil_lap, stall_limit_s
 
     elf = build_fault(tmp_path, fault)
     t0 = time.perf_counter()
@@ -211,7 +211,7 @@ def test_unrunnable_configuration_is_refused_before_the_lap(pil_ready):
 
 
 def test_without_simavr_the_command_says_what_to_install(monkeypatch, capsys):
-    from twin import mcu
+    from twin.pil import mcu
     from twin.cli.main import main
 
     monkeypatch.setattr(mcu, "_lib", None)
@@ -245,7 +245,7 @@ def test_emulated_firmware_telemetry_feeds_live(pil_ready, tmp_path):
 
 
 def test_firmware_command_writes_what_avrdude_flashes(pil_ready, tmp_path):
-    from twin.digital_twin import DigitalTwin
+    from twin.core.digital_twin import DigitalTwin
 
     out = tmp_path / "fw"
     done = cli("firmware", "--out-dir", str(out), "--set", "control.kp=20", "--json")
@@ -277,9 +277,9 @@ def test_an_mcu_attached_before_the_physics_stepped_reads_a_dark_floor(pil_ready
     """mj_ray stops the whole process on a sensor without a pose: the glue reads no light instead."""
     import mujoco
 
-    from twin import pil
-    from twin.mcu import Mcu
-    from twin.variant import Variant
+    from twin.pil import lap as pil
+    from twin.pil.mcu import Mcu
+    from twin.core.variant import Variant
 
     lap = Variant.of(default_twin, {})
     model = default_twin.model()

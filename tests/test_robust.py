@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from tuner.envelope import Envelope, Risk, held_out_seeds
-from tuner.objective import LapObjective, lap_cost
-from tuner.space import SearchSpace
+from tuner.search.envelope import Envelope, Risk, held_out_seeds
+from tuner.search.objective import LapObjective, lap_cost
+from tuner.search.space import SearchSpace
 from twin.cli import tune
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 
 

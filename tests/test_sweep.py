@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from twin.cli.main import main
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
-from twin.sweep import Axis, sweep
+from tuner.studies.sweep import Axis, sweep
 
 
 def test_points_are_the_laps_run_one_by_one():

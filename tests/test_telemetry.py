@@ -6,12 +6,12 @@ import json
 
 import pytest
 
-from twin.closed_loop import run_laps
-from twin.digital_twin import DigitalTwin
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.run import main
-from twin.telemetry import lap_lines, read_telemetry, write_telemetry
-from tuner.align_trace import align_telemetry
+from twin.telemetry.jsonl import lap_lines, read_telemetry, write_telemetry
+from tuner.align.trace import align_telemetry
 
 GAINS = {"control.v_max": 1.0, "control.kb": 0.3, "control.kp": 25.0, "control.kd": 0.5}
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from twin.cli.tune import main as tuner_main
-from tuner.gradient import DescentOptions, central_difference, descend, sequential
-from tuner.objective import PENALTY_S, SLOW_SPEED, LapObjective, lap_cost
+from tuner.search.gradient import DescentOptions, central_difference, descend, sequential
+from tuner.search.objective import PENALTY_S, SLOW_SPEED, LapObjective, lap_cost
 from twin.errors import TwinError
-from tuner.space import SearchSpace, TunerError
-from twin.digital_twin import DigitalTwin
+from tuner.search.space import SearchSpace, TunerError
+from twin.core.digital_twin import DigitalTwin
 from twin.run import main as twin_main
 
 A = np.array([[3.0, 1.0, 0.0], [1.0, 2.0, 0.5], [0.0, 0.5, 1.0]])
@@ -64,7 +64,7 @@ def test_sequential_uses_exactly_one_plus_n_laps_per_iteration():
 
 
 def test_lap_cost_penalises_failure_by_distance_left():
-    from twin.lap import LapResult
+    from twin.core.lap import LapResult
 
     def lap(completed, t, d):
         return LapResult(completed, None if completed else "off_track", "", t if completed else None, t, d, 7.0,

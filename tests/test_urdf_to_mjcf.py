@@ -15,7 +15,7 @@ from mjcf import MjcfError, RobotConfig, RobotDesign
 from mjcf.cad import write_robot
 from mjcf.urdf_to_mjcf import convert
 from mjcf.world import MOTORS, save_xml
-from twin.digital_twin import DigitalTwin
+from twin.core.digital_twin import DigitalTwin
 
 
 def test_inertials_are_kept_exactly(tmp_path):

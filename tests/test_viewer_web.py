@@ -4,7 +4,7 @@ installed rerun, in headless Chromium: no viewer error in the console, and every
 The viewer draws into a WebGL canvas (egui): panel titles are not in the page's DOM, so they are read from a
 screenshot with Tesseract OCR. Needs Debian's ``chromium`` and ``tesseract-ocr`` (``.ci/run`` installs both)
 and Playwright's Python package (the ``test`` extra), pointed at the system browser (see
-:mod:`twin.web_viewer`). Skipped where they are missing, except in CI (``CI`` set), where that is a failure.
+:mod:`twin.viz.web_viewer`). Skipped where they are missing, except in CI (``CI`` set), where that is a failure.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ import time
 
 import pytest
 
-from twin.digital_twin import DigitalTwin
-from twin.emulator import lap_records
-from twin.viewer import viewer_executable
-from twin.web_viewer import chromium_executable, headless_chromium, served
+from twin.core.digital_twin import DigitalTwin
+from twin.link.emulator import lap_records
+from twin.viz.viewer import viewer_executable
+from twin.viz.web_viewer import chromium_executable, headless_chromium, served
 
 TESSERACT = shutil.which("tesseract")
 RERUN = viewer_executable()

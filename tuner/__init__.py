@@ -1,7 +1,10 @@
-"""Learning partial model (paper §3.7, Eqs. 12–13): gradient descent over model-space addresses, its laps run
-as batches of parallel simulations (``twin.closed_loop.run_laps``); alignment to a lap time or a recorded run;
-design studies; the live twin's re-alignment.
+"""The learning partial model (paper §3.7, Eqs. 12–13) and the studies built on the twin, in rooms:
 
-Importing ``tuner`` loads nothing heavy (``python -m tuner`` handles Ctrl-C from its first instant); import the
-modules: ``tuner.gradient``, ``tuner.objective``, ``tuner.space``, ``tuner.align``, ``tuner.design``, …
+* :mod:`tuner.search`: the search space, the lap objective over an envelope, gradient descent (Eq. 12);
+* :mod:`tuner.align`: alignment to a lap time or a recorded run, and diagnosis of a robot unlike its twin;
+* :mod:`tuner.live`: the twin beside the running robot (compare each lap, re-align in the background);
+* :mod:`tuner.studies`: design studies (their evidence, report and Ray cluster runner) and sensitivity sweeps;
+* :mod:`tuner.recording`: rerun recordings of all of these.
+
+Importing ``tuner`` loads nothing heavy (``python -m tuner`` handles Ctrl-C from its first instant).
 """

@@ -1,7 +1,7 @@
 """rerun recordings of the learning model's work: tuning runs, alignments, design studies and the live twin.
 
 Each writer takes ``save`` (a path or None) and ``view`` (stream to the viewer) and goes through
-:func:`twin.recording.recording`: atomic files that replace only recordings of ours, one unit per panel.
+:func:`twin.viz.recording.recording`: atomic files that replace only recordings of ours, one unit per panel.
 """
 
 from __future__ import annotations
@@ -14,13 +14,13 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from twin import recording as twin_recording
-from twin.digital_twin import DigitalTwin
-from twin.lap import LapResult
-from twin.recording import log_lap, log_track, recording
-from twin.telemetry import Telemetry
-from tuner.gradient import Iteration
-from tuner.space import SearchSpace
+from twin.viz import recording as twin_recording
+from twin.core.digital_twin import DigitalTwin
+from twin.core.lap import LapResult
+from twin.viz.recording import log_lap, log_track, recording
+from twin.telemetry.jsonl import Telemetry
+from tuner.search.gradient import Iteration
+from tuner.search.space import SearchSpace
 
 
 def _saved(save: str | None) -> str | None:

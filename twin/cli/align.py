@@ -8,14 +8,14 @@ import math
 import os
 
 from lf_common.files import check_output_file, json_is_ours
-from twin import recording
+from twin.viz import recording
 from twin.cli import options as o
 from twin.cli.output import Output
 from twin.errors import TwinError
-from twin.parameter_files import save_values
-from twin.telemetry import read_telemetry
-from tuner.align import ACCEPT, TOLERANCE, align_lap_time
-from tuner.align_trace import align_telemetry
+from twin.model.parameter_files import save_values
+from twin.telemetry.jsonl import read_telemetry
+from tuner.align.lap_time import ACCEPT, TOLERANCE, align_lap_time
+from tuner.align.trace import align_telemetry
 from tuner.recording import save_alignment, save_trace_alignment
 
 HELP = "align a parameter (default motion.mu) to a measured lap time, or parameters to a recorded run"
@@ -30,7 +30,7 @@ def add_parser(sub) -> None:
         "not explained or a parameter is not identifiable."))
     p.add_argument("--measured-lap-time", type=o.number(0.0, 3600.0, lo_open=True), metavar="S",
                    help="the robot's lap time [s]")
-    p.add_argument("--telemetry", metavar="LAP.jsonl", help="a recorded run (lf-telemetry, see twin.telemetry); its "
+    p.add_argument("--telemetry", metavar="LAP.jsonl", help="a recorded run (lf-telemetry, see twin.telemetry.jsonl); its "
                    "track and gains are used unless --track/--gains say otherwise")
     o.add_search(p, "what to align, repeatable with --telemetry (default motion.mu; with --telemetry motion.mu and "
                     "motor.R_M)")

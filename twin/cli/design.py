@@ -6,15 +6,15 @@ import argparse
 import time
 
 from lf_common.files import check_output_dir
-from twin import recording
+from twin.viz import recording
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.environment import load_track
+from twin.model.environment import load_track
 from twin.errors import TwinError
-from twin.models import default_space
-from tuner.design_evidence import describe
-from tuner.design import DEFAULT_GRID, grid, pareto, study, trend
-from tuner.design_report import write_report
+from twin.model.partial_models import default_space
+from tuner.studies.evidence import describe
+from tuner.studies.design import DEFAULT_GRID, grid, pareto, study, trend
+from tuner.studies.report import write_report
 
 HELP = "design study: rebuild, tune and race every design of a grid over design parameters (cad.*, motor.model, …)"
 
@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         bar.set_postfix_str(f"{r.label}: {r.median_s:.3f} s" if r.ok else f"{r.label}: failed")
 
     if args.cluster:
-        from tuner.cluster import study_on_ray
+        from tuner.studies.cluster import study_on_ray
 
         results = study_on_ray(designs, base, args.laps, args.max_iter, args.cluster, on_done=on_done)
     else:

@@ -9,8 +9,8 @@ import math
 from twin.cli import options as o
 from twin.cli.output import Output
 from twin.errors import TwinError
-from twin.telemetry import read_telemetry
-from tuner.diagnose import DEFAULT_CANDIDATES, diagnose
+from twin.telemetry.jsonl import read_telemetry
+from tuner.align.diagnose import DEFAULT_CANDIDATES, diagnose
 
 HELP = "rank the likely causes of a lap time the twin does not reproduce (grip, battery, motor, payload)"
 

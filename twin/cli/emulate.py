@@ -8,10 +8,10 @@ import os
 
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.emulator import (NoReader, accept, check_link_path, drain_pty, firmware_lap_records, lap_records, open_pty,
+from twin.link.emulator import (NoReader, accept, check_link_path, drain_pty, firmware_lap_records, lap_records, open_pty,
                            pty_writer, release_link, serve_tcp, stream)
 from twin.errors import TwinError
-from twin.pil import runnable_firmware
+from twin.pil.lap import runnable_firmware
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
 
@@ -19,7 +19,7 @@ HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
 def add_parser(sub) -> None:
     p = sub.add_parser("emulate", help=HELP, description=(
         "A twin with hidden parameters (--set) and its own noise seed drives lap after lap and streams its telemetry "
-        "(twin.wire) at real-time pace (or --speed times faster) on a pseudo-terminal it creates (the path is printed) "
+        "(twin.telemetry.wire) at real-time pace (or --speed times faster) on a pseudo-terminal it creates (the path is printed) "
         "or on 127.0.0.1:--tcp PORT."))
     o.add_world(p)
     o.add_values(p, "a hidden model-space parameter, repeatable")

@@ -8,11 +8,11 @@ import shutil
 import subprocess
 
 from lf_common.files import output_dir
-from twin import avr_firmware as fw
+from twin.pil import firmware as fw
 from twin.cli import options as o
 from twin.cli.output import Output
 from twin.errors import TwinError
-from twin.pil import TELEMETRY_EVERY
+from twin.pil.lap import TELEMETRY_EVERY
 
 HELP = "write the robot's firmware (ELF, flash .hex) and its parameters (EEPROM .hex) for avrdude"
 

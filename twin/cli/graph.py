@@ -6,7 +6,7 @@ import argparse
 
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.models import default_space
+from twin.model.partial_models import default_space
 
 HELP = "print the common model space: models, ports, parameters and relations"
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 
-from twin import recording
+from twin.viz import recording
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.closed_loop import run_laps
-from twin.lap import LapLimits
-from twin.pil import run_pil_lap
+from twin.core.closed_loop import run_laps
+from twin.core.lap import LapLimits
+from twin.pil.lap import run_pil_lap
 
 HELP = "calibrate and run one closed-loop lap; print the lap time and a summary"
 

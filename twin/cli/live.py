@@ -13,8 +13,9 @@ from twin.cli import options as o
 from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
 from twin.errors import TwinError
-from tuner.live import LiveOptions, LiveTwin, feed_line, replay_log, resume
-from twin.link import FSYNC_INTERVAL_S, RETRY_S, DurableLog, LinkGaveUp, LinkStats, check_port, read_link
+from tuner.live.live_twin import LiveOptions, LiveTwin
+from tuner.live.replay import feed_line, replay_log, resume
+from twin.link.reader import FSYNC_INTERVAL_S, RETRY_S, DurableLog, LinkGaveUp, LinkStats, check_port, read_link
 from tuner.recording import LiveRecording
 
 HELP = "run the twin beside the robot: compare laps, re-align when they disagree"

@@ -16,10 +16,10 @@ from typing import Sequence
 
 from mjcf.robot_config import RobotConfig
 from twin.cli.guard import fail
-from twin.digital_twin import DigitalTwin
+from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
-from twin.motor_setup import MOTOR_MODEL, catalogue_motor, motor_for_robot, use_motor
-from twin.parameter_files import load_gains, load_values
+from twin.model.motor_setup import MOTOR_MODEL, catalogue_motor, motor_for_robot, use_motor
+from twin.model.parameter_files import load_gains, load_values
 
 MAX_SEED = 2**64 - 1
 log = logging.getLogger(__name__)

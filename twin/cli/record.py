@@ -8,8 +8,8 @@ import argparse
 from lf_common.files import check_output_file, jsonl_is_ours
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.closed_loop import run_laps
-from twin.telemetry import lap_lines, telemetry_header, write_telemetry
+from twin.core.closed_loop import run_laps
+from twin.telemetry.jsonl import lap_lines, telemetry_header, write_telemetry
 
 HELP = "run one lap of a twin with hidden parameters and write it as robot telemetry (JSON Lines)"
 

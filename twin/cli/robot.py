@@ -16,8 +16,8 @@ from motors import POLOLU_MP_6V_30_1
 from twin.cli import options as o
 from twin.cli.guard import run_command
 from twin.cli.output import Output
-from twin.environment import load_track
-from twin.models import default_space
+from twin.model.environment import load_track
+from twin.model.partial_models import default_space
 
 GENERATE_HELP = "write the parametric robot's URDF and meshes into a folder"
 CONVERT_HELP = "convert a differential-drive URDF to MJCF on a track"

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import argparse
 
-from twin import recording
+from twin.viz import recording
 from twin.cli import options as o
 from twin.cli.output import Output
 from twin.errors import TwinError
-from twin.sweep import Axis, check_axes, check_size, grid_points, points_of, sweep, write_sweep
+from tuner.studies.sweep import Axis, check_axes, check_size, grid_points, points_of, sweep, write_sweep
 from lf_common.files import check_output_dir
 
 HELP = "sensitivity sweep: lap time, completion, cross-track error and energy against one or two parameters"
@@ -51,7 +51,7 @@ def _sweep_on_cluster(args, twin, axes, seeds, out: Output):
     from tqdm import tqdm
 
     from mjcf.track import BUILTIN_SEGMENTS
-    from tuner.cluster import sweep_on_ray
+    from tuner.studies.cluster import sweep_on_ray
 
     if getattr(args, "robot", None):
         raise TwinError("--cluster: the nodes get parameter values, not files; a --robot description cannot go with "

@@ -3,7 +3,7 @@ by gradient descent on the lap time (Eq. 12).
 
 With no options it tunes v_max, K_B, K_P, K_I, K_D of the default robot on the default track from the default
 gains, on one noise seed. With --robust (or --scenario/--seeds/--risk) every step judges the gains over an
-envelope of conditions (tyre grip, battery, noise seeds; see tuner.envelope) in one batch of laps. At the end the
+envelope of conditions (tyre grip, battery, noise seeds; see tuner.search.envelope) in one batch of laps. At the end the
 gains are raced on noise seeds never used in tuning (--held-out), so the generalisation gap shows. Ctrl-C stops
 after the current iteration, reports, and writes the best values found so far.
 """
@@ -18,19 +18,19 @@ import time
 import numpy as np
 
 from lf_common.files import check_output_file, json_is_ours
-from twin import recording
+from twin.viz import recording
 from twin.cli import options as o
 from twin.cli.guard import run_command
 from twin.cli.output import Output
-from twin.closed_loop import run_laps
-from twin.model_space import ChangeCost
-from twin.parameter_files import save_values
-from tuner.gradient import DescentOptions, descend, sequential
-from tuner.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk, held_out_seeds, label
-from tuner.objective import LapObjective
+from twin.core.closed_loop import run_laps
+from twin.model.space import ChangeCost
+from twin.model.parameter_files import save_values
+from tuner.search.gradient import DescentOptions, descend, sequential
+from tuner.search.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk, held_out_seeds, label
+from tuner.search.objective import LapObjective
 from tuner.recording import save_tuning
-from tuner.start import rescue_start
-from tuner.space import DEFAULT_BOUNDS, SearchSpace, TunerError, robot_bounds
+from tuner.search.start import rescue_start
+from tuner.search.space import DEFAULT_BOUNDS, SearchSpace, TunerError, robot_bounds
 
 HELP = "tune the gains (default: v_max, K_B, K_P, K_I, K_D) by gradient descent on the lap time"
 
@@ -68,7 +68,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    f"mean; --robust: {ROBUST_RISK})")
     p.add_argument("--robust", action="store_true", help="the realistic envelope of the default robot: "
                    + ", ".join(f"{a} in {{{', '.join(f'{v:g}' for v in vs)}}}" for a, vs in ROBUST_AXES.items())
-                   + f", {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap (see tuner.envelope for the sources)")
+                   + f", {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap (see tuner.search.envelope for the sources)")
     p.add_argument("--held-out", type=o.number(0, 1000, integer=True), default=20, metavar="N",
                    help="race the final gains on N seeds never used in tuning, in every corner of the envelope")
     p.add_argument("--max-iter", type=o.count_type, default=30, metavar="N", help="iteration cap")

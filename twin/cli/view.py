@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from twin import viewer
+from twin.viz import viewer
 from twin.cli import options as o
 from twin.cli.output import Output
 

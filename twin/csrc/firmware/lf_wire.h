@@ -1,4 +1,4 @@
-/* Telemetry on the wire (see twin/wire.py): NMEA-style lines "$LF...*CS\n", integers only, formatted without
+/* Telemetry on the wire (see twin/telemetry/wire.py): NMEA-style lines "$LF...*CS\n", integers only, formatted without
  * printf so the MCU spends a few hundred cycles per line. Each function writes into buf (at least
  * LF_WIRE_MAX bytes), NUL-terminates it and returns the line's length. */
 #ifndef LF_WIRE_H

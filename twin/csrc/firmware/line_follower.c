@@ -1,4 +1,4 @@
-/* Line-follower firmware; see line_follower.h. Python reference: line_sensor.reference, twin.controller. */
+/* Line-follower firmware; see line_follower.h. Python reference: line_sensor.reference, twin.model.control. */
 #include "line_follower.h"
 
 #include <math.h>

@@ -76,7 +76,7 @@ typedef struct {
   int32_t index; /* a sensor, for its cycle timer's callback */
 } sensor_ref;
 
-/* The MCU's figures for the run so far (Python: twin.pil.McuStatus). */
+/* The MCU's figures for the run so far (Python: twin.pil.lap.McuStatus). */
 typedef struct {
   uint64_t cycle;          /* MCU clock cycles since reset */
   int64_t ticks;           /* control ticks completed (the firmware's fw_ticks_done) */

@@ -1,4 +1,4 @@
-/* The layout Python mirrors (twin.core): every field's offset and size, so a stale build or a mirror that drifted
+/* The layout Python mirrors (twin.core.native): every field's offset and size, so a stale build or a mirror that drifted
  * from the C fails at import instead of reading the wrong bytes. */
 #include <stddef.h>
 

@@ -31,7 +31,7 @@ static lf_sim *sim_of(const mjModel *m, mjData *d) {
   return (lf_sim *)d->userdata;
 }
 
-/* The model's sizes that a head is written for, in the order of twin.core.SIGNATURE. */
+/* The model's sizes that a head is written for, in the order of twin.core.native.SIGNATURE. */
 static void model_signature(const mjModel *m, int64_t *out) {
   out[0] = m->nbody;
   out[1] = m->nsite;

@@ -1,6 +1,6 @@
 /* MuJoCo's warnings for Python's logging, instead of MUJOCO_LOG.TXT in the working directory and the console.
  *
- * The handler (installed by twin.core with mju_setLogHandler) keeps the first LF_LOG_KEEP distinct messages with
+ * The handler (installed by twin.core.native with mju_setLogHandler) keeps the first LF_LOG_KEEP distinct messages with
  * how often each came, and counts the rest; Python drains them after each batch call (lf_log_drain) into the
  * "mujoco" logger. An unstable simulation warns at every step (the same few lines thousands of times), so keeping
  * a few and counting bounds both memory and the log. mujoco.batch

@@ -3,7 +3,7 @@
  * Rays are cast with MuJoCo's mj_ray, called through a pointer that Python hands over once (lf_set_ray) from
  * the libmujoco the mujoco module has loaded: the library needs no link-time dependency on a versioned .so.
  *
- * userdata = [lf_sim | lf_record x record_capacity], all 8-byte aligned. Python (twin.core) mirrors these
+ * userdata = [lf_sim | lf_record x record_capacity], all 8-byte aligned. Python (twin.core.native) mirrors these
  * structs with ctypes and checks their sizes (lf_sizes) and every field's offset (lf_layout) when the library loads.
  *
  * Python validates and C trusts the values, but not the userdata's fit to the model it is stepped with: before

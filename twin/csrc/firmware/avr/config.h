@@ -1,5 +1,5 @@
 /* What this robot's firmware is told, from EEPROM: the control parameters (lf_params), the sensor read timeout and
- * the telemetry rate. The twin writes the image (twin.avr_firmware.eeprom_image); on the robot it is flashed with
+ * the telemetry rate. The twin writes the image (twin.pil.firmware.eeprom_image); on the robot it is flashed with
  * the program (avrdude -U eeprom:w:config.hex). An image with the wrong mark, size or checksum is not used: the
  * robot then stays still with its motors braked, rather than run on guesses.
  *

@@ -1,0 +1,274 @@
+"""Alignment to a measured lap time (paper §4.1, Fig. 6): find every value of one parameter (tyre friction μ by
+default) for which the simulated lap time equals the robot's measured one.
+
+Gradient descent on (t_sim(p) − t_measured)², as in the paper, safeguarded for where it fails:
+
+1. **Scan** (one batch): the lap at ``SCAN_POINTS`` values across the allowed range. This gives the range of
+   lap times the parameter can explain; a measurement outside it is reported as unexplained, with that
+   range, instead of returning the nearest bound as if it were an answer.
+2. **Refine** (one batch per round, at most ``REFINE_ROUNDS`` rounds and ``REFINE_LAPS`` laps): t(p) can be steep
+   and narrow, just above the grip limit, where eight scan points miss it. A midpoint is added between
+   neighbours where one lap fails and the other completes, and between neighbours whose lap times differ by
+   more than the measurement's tolerance while the measurement lies within their reach (between them, or
+   within one such difference of them).
+3. **Brackets**: every pair of neighbouring scan values whose lap times straddle the measurement.
+4. **Descend** inside each bracket. Each iteration is one batch of three laps (p and p(1 ± h)) for the residual
+   r = t − t_m and its slope; the step is the Gauss–Newton step on r² (gradient descent with γ = 1/(2 r'²)).
+   Where t(p) is flat (tyres that never slip give no gradient) or the step leaves the bracket, bisect
+   instead; every lap narrows the bracket by the sign of its residual. Stops at |r| ≤ ``TOLERANCE``·t_m.
+
+Every lap run on the way is kept. Around each solution, the values whose laps land within ``TOLERANCE`` of the
+measurement give a range the measurement is consistent with; disjoint ranges are all reported, and the
+value returned is the one nearest the twin's current value (the robot changed least). When a range is wide
+(lap time hardly depends on the parameter there), the result says the parameter is not identifiable from a
+lap time alone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+from twin.model.space import ChangeCost
+from tuner.search.space import TunerError
+
+SCAN_POINTS = 8
+REFINE_ROUNDS = 5  # midpoint rounds after the scan, one batch each
+REFINE_LAPS = 40  # at most this many refinement laps in all
+DEFAULT_RANGES = {"motion.mu": (0.3, 2.0)}  # below ~0.3 a line follower cannot hold the track at any speed
+RELATIVE_RANGE = 3.0  # other parameters: from a third to three times their current value
+REL_STEP = 0.01  # finite-difference step, relative to the value
+TOLERANCE = 0.001  # aim for 0.1 %; success is within 0.5 % (ACCEPT)
+ACCEPT = 0.005
+IDENTIFIABLE_SPAN = 0.10  # a consistent range wider than this fraction of the value: not identifiable
+
+
+@dataclasses.dataclass(frozen=True)
+class AlignPoint:
+    """One lap of the alignment: the parameter value and its lap time (None if the lap failed)."""
+
+    iteration: int  # 0: the scan
+    value: float
+    lap_time_s: float | None
+
+
+@dataclasses.dataclass(frozen=True)
+class Solution:
+    """One value that explains the measurement, and the range of values around it that do too."""
+
+    value: float
+    lap_time_s: float
+    consistent: tuple[float, float]  # values whose laps were within TOLERANCE of the measurement, around it
+    identifiable: bool  # that range is narrow (< IDENTIFIABLE_SPAN of the value)
+
+
+@dataclasses.dataclass(frozen=True)
+class LapTimeAlignment:
+    parameter: str
+    value: float | None  # None when no value explains the measurement
+    simulated_lap_time_s: float | None
+    measured_lap_time_s: float
+    explained: bool  # within ACCEPT of the measurement
+    iterations: int
+    laps: int
+    reachable_s: tuple[float, float] | None  # lap times the scan found possible, fastest first
+    consistent: tuple[float, float] | None  # the chosen solution's consistent range
+    identifiable: bool  # the chosen solution's range is narrow and it is the only one
+    message: str
+    trace: tuple[AlignPoint, ...]
+    solutions: tuple[Solution, ...] = ()  # every disjoint range that explains the measurement
+
+    def summary(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["trace"] = [dataclasses.asdict(p) for p in self.trace]
+        d["solutions"] = [dataclasses.asdict(x) for x in self.solutions]
+        return d
+
+
+def _lap_times(twin: DigitalTwin, address: str, values, seed: int, nthread: int) -> list[float | None]:
+    """The lap time at each value (None: the lap failed): one batch, or, for a parameter that rebuilds the robot,
+    one build and lap per value."""
+    if twin.space.parameter(address).cost is ChangeCost.REBUILD:
+        results = [run_laps(twin.clone({address: float(v)}), [{}], seed=seed, nthread=nthread, keep_traces=False)[0]
+                   for v in values]
+    else:
+        results = run_laps(twin, [{address: float(v)} for v in values], seed=seed, nthread=nthread, keep_traces=False)
+    return [r.lap_time_s if r.completed else None for r in results]
+
+
+def _midpoint(a: float, b: float) -> float:
+    return math.sqrt(a * b) if a > 0 else 0.5 * (a + b)
+
+
+def _refine(points: list[tuple[float, float | None]], m: float, tol: float) -> list[float]:
+    """Where the scan may have stepped over a crossing: midpoints of the intervals to look into."""
+    out = []
+    for (a, ta), (b, tb) in zip(points, points[1:]):
+        if b - a <= 1e-4 * max(abs(a), abs(b), 1e-9):
+            continue  # as fine as it is worth going
+        if (ta is None) != (tb is None):
+            out.append(_midpoint(a, b))
+        elif ta is not None and abs(ta - tb) > tol * m:
+            reach = abs(ta - tb)
+            if min(ta, tb) - reach <= m <= max(ta, tb) + reach:
+                out.append(_midpoint(a, b))
+    return out
+
+
+def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0) -> tuple[float, float, int]:
+    """Safeguarded Gauss–Newton on (t − m)² inside a bracket [a, b]; returns (value, lap time, iterations)."""
+    x = a + (m - ta) * (b - a) / (tb - ta)  # start at the secant
+    value, lap = (a, ta) if abs(ta - m) < abs(tb - m) else (b, tb)
+    k = 0
+    for k in range(1, max_iter + 1):
+        h = REL_STEP * max(abs(x), 1e-3)
+        xs = [x, min(x + h, b), max(x - h, a)]
+        t = _lap_times(twin, address, xs, seed, nthread)
+        trace += [AlignPoint(k0 + k, float(v), tt) for v, tt in zip(xs, t)]
+        for v, tt in zip(xs, t):  # every completed lap narrows the bracket
+            if tt is None:
+                continue
+            if abs(tt - m) < abs(lap - m):
+                value, lap = v, tt
+            if (tt - m) * (ta - m) > 0:
+                a, ta = v, tt
+            else:
+                b, tb = v, tt
+        if abs(lap - m) <= TOLERANCE * m or (b - a) <= 1e-6 * max(abs(b), 1.0):
+            break
+        slope = None
+        if None not in t and xs[1] > xs[2]:
+            slope = (t[1] - t[2]) / (xs[1] - xs[2])
+        step_ok = False
+        if t[0] is not None and slope and abs(slope) > 1e-9:
+            nxt = x - (t[0] - m) / slope  # Gauss–Newton on (t − m)²
+            step_ok = a < nxt < b
+        x = nxt if step_ok else 0.5 * (a + b)  # flat or outside the bracket: bisect
+    return value, lap, k
+
+
+def _solutions(found: list[tuple[float, float]], trace: list[AlignPoint], m: float) -> list[Solution]:
+    """One :class:`Solution` per disjoint range of values whose laps land within TOLERANCE of m."""
+    done = sorted((p.value, p.lap_time_s) for p in trace if p.lap_time_s is not None)
+    near = [abs(t - m) <= TOLERANCE * m for _, t in done]
+    out: list[Solution] = []
+    for value, lap in sorted(found):
+        if abs(lap - m) > ACCEPT * m:
+            continue
+        i = min(range(len(done)), key=lambda j: abs(done[j][0] - value))
+        lo = hi = value
+        j = i
+        while j - 1 >= 0 and near[j - 1]:  # widen over neighbours that are within tolerance too
+            j -= 1
+            lo = min(lo, done[j][0])
+        j = i
+        while j + 1 < len(done) and near[j + 1]:
+            j += 1
+            hi = max(hi, done[j][0])
+        if out and lo <= out[-1].consistent[1]:
+            continue  # the same range as the last solution
+        narrow = hi - lo <= IDENTIFIABLE_SPAN * max(abs(value), 1e-9)
+        out.append(Solution(value, lap, (lo, hi), narrow))
+    return out
+
+
+def align_lap_time(
+    twin: DigitalTwin,
+    measured_lap_time_s: float,
+    address: str = "motion.mu",
+    bounds: tuple[float, float] | None = None,
+    seed: int = 0,
+    max_iter: int = 20,
+    nthread: int = 0,
+) -> LapTimeAlignment:
+    """Align one parameter to a measured lap time (see the module docstring). A parameter that rebuilds the robot
+    (``cad.*``) is searched too, one build per value, so it costs far more wall time."""
+    if not (isinstance(measured_lap_time_s, (int, float)) and math.isfinite(measured_lap_time_s) and measured_lap_time_s > 0):
+        raise TunerError(f"measured lap time: must be a finite number of seconds > 0, got {measured_lap_time_s!r}")
+    p = twin.space.parameter(address)
+    if p.integer:
+        raise TunerError(f"{address}: a whole-number parameter cannot be aligned to a lap time")
+    twin.checked_values({address: twin.space.get(address)})  # a cad.* address of a URDF robot: refused here
+    if bounds is None:  # a range of its own, else a factor of RELATIVE_RANGE either side of the current value
+        v = twin.space.get(address)
+        bounds = DEFAULT_RANGES.get(address) or (
+            (max(p.lower, v / RELATIVE_RANGE), min(p.upper, v * RELATIVE_RANGE)) if v > 0 else (p.lower, p.upper))
+    lo, hi = bounds
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise TunerError(f"{address}: bounds [{lo:g}, {hi:g}] are inverted, empty or not finite")
+    p.check(f"{address} lower bound", lo)
+    p.check(f"{address} upper bound", hi)
+    m = float(measured_lap_time_s)
+    trace: list[AlignPoint] = []
+    current = twin.space.get(address)
+
+    # 1.-2. scan, then refine where a crossing may hide (geometric spacing for a positive parameter: friction
+    # acts by ratios)
+    values = list(np.geomspace(lo, hi, SCAN_POINTS) if lo > 0 else np.linspace(lo, hi, SCAN_POINTS))
+    points: list[tuple[float, float | None]] = []
+    for _ in range(REFINE_ROUNDS + 1):
+        values = values[: max(0, SCAN_POINTS + REFINE_LAPS - len(points))]
+        if not values:
+            break
+        times = _lap_times(twin, address, values, seed, nthread)
+        trace += [AlignPoint(0, float(v), t) for v, t in zip(values, times)]
+        points = sorted(points + [(float(v), t) for v, t in zip(values, times)])
+        values = _refine(points, m, TOLERANCE)
+    done = [(v, t) for v, t in points if t is not None]
+    if not done:
+        return _result(address, [], m, 0, trace, None, current,
+                       f"no lap completes for {address} in [{lo:g}, {hi:g}] with these gains")
+    reachable = (min(t for _, t in done), max(t for _, t in done))
+    # 3. brackets: neighbouring completed values on either side of the measurement, and exact hits
+    found = [(v, t) for v, t in done if abs(t - m) <= TOLERANCE * m]
+    brackets = [(a, b) for a, b in zip(done, done[1:]) if (a[1] - m) * (b[1] - m) < 0]
+    if not brackets and not found:
+        where = "faster" if m < reachable[0] else "slower" if m > reachable[1] else "between the values the scan found"
+        return _result(
+            address, [], m, 0, trace, reachable, current,
+            f"no {address} in [{lo:g}, {hi:g}] explains {m:g} s: the simulated lap takes {reachable[0]:.3f}–"
+            f"{reachable[1]:.3f} s there (the measurement is {where}); check the gains, the track or another parameter")
+    # 4. safeguarded Gauss–Newton inside each bracket
+    iterations = 0
+    for (a, ta), (b, tb) in brackets:
+        if any(a <= v <= b for v, _ in found):
+            continue  # a scan lap already landed within tolerance here
+        value, lap, k = _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, iterations)
+        iterations += k
+        found.append((value, lap))
+    return _result(address, found, m, iterations, trace, reachable, current, None)
+
+
+def _result(address: str, found: list[tuple[float, float]], m: float, iterations: int, trace: list[AlignPoint],
+            reachable, current: float, message: str | None) -> LapTimeAlignment:
+    solutions = _solutions(found, trace, m)
+    if not solutions:
+        if found:  # brackets were searched but no lap got within ACCEPT: report the closest
+            value, lap = min(found, key=lambda vt: abs(vt[1] - m))
+            message = message or f"closest {address} = {value:.5g} gives {lap:.3f} s, {100 * (lap - m) / m:+.2f} % off"
+            return LapTimeAlignment(address, value, lap, m, False, iterations, len(trace), reachable, None, False,
+                                    message, tuple(trace))
+        return LapTimeAlignment(address, None, None, m, False, iterations, len(trace), reachable, None, False,
+                                message or f"no {address} explains {m:g} s", tuple(trace))
+
+    def distance(x: Solution) -> float:  # the robot changed least: by ratio for a positive parameter
+        return abs(math.log(x.value / current)) if x.value > 0 and current > 0 else abs(x.value - current)
+
+    best = min(solutions, key=distance)
+    message = (f"{address} = {best.value:.5g} gives {best.lap_time_s:.3f} s against {m:.3f} s measured "
+               f"({100 * (best.lap_time_s - m) / m:+.2f} %)")
+    if len(solutions) > 1:
+        ranges = "; ".join(f"[{x.consistent[0]:.4g}, {x.consistent[1]:.4g}]" for x in solutions)
+        message += (f"; {len(solutions)} disjoint ranges explain it ({ranges}): the one nearest the current "
+                    f"{current:.4g} is given")
+    if not best.identifiable:
+        message += (f"; but every value in [{best.consistent[0]:.4g}, {best.consistent[1]:.4g}] gives a lap within "
+                    f"{TOLERANCE * 100:g} %: the lap time hardly depends on it there, so it is not identifiable from "
+                    "a lap time alone")
+    return LapTimeAlignment(address, best.value, best.lap_time_s, m, True, iterations, len(trace), reachable,
+                            best.consistent, best.identifiable and len(solutions) == 1, message, tuple(trace),
+                            tuple(solutions))

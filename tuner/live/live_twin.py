@@ -1,0 +1,156 @@
+"""The twin beside the robot (paper §3.8, §4.2): compare each lap of its telemetry with the twin's prediction, and
+re-align the twin when they keep disagreeing. Reading the link, logging and locking are :mod:`twin.link.reader`'s;
+laps are assembled and judged for plausibility by :class:`twin.telemetry.laps.LapAssembler` (an implausible lap is
+reported, log warning and ``--json``, and counted, never used for re-alignment).
+
+* A completed lap is compared with the twin's lap under its current parameters: lap time and line position.
+  When the lap time differs by more than ``threshold`` for ``k_laps`` laps in a row, the aligner
+  (:func:`tuner.align.lap_time.align_lap_time`, every range that explains it) runs in a background thread on its own
+  copy of the twin, on the mean of those laps; its result is applied, logged with the reason, and saved.
+* The state file (:mod:`tuner.live.state`) holds the aligned value and the alignments. A restart replays the log
+  (:func:`tuner.live.replay.resume`) and reloads the state.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import threading
+import time
+from typing import Callable
+
+import numpy as np
+
+from lf_common.files import write_json
+from tuner.align.lap_time import align_lap_time
+from tuner.live.state import STATE, read_state
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+from twin.core.lap import LapLimits
+from twin.telemetry.laps import LapAssembler, RobotLap
+
+log = logging.getLogger(__name__)
+
+
+
+@dataclasses.dataclass(frozen=True)
+class LiveOptions:
+    address: str = "motion.mu"  # what re-alignment adjusts
+    bounds: tuple[float, float] | None = (0.15, 2.0)
+    threshold: float = 0.005  # relative lap-time discrepancy that counts as disagreeing
+    k_laps: int = 2  # laps in a row above the threshold before re-aligning
+    seed: int = 0
+
+
+class LiveTwin:
+    """The decisions of live mode, independent of where the lines come from."""
+
+    def __init__(self, twin: DigitalTwin, options: LiveOptions, state_path: str | None = None,
+                 on_lap: Callable[[dict], None] | None = None):
+        self.twin, self.o, self.state_path, self.on_lap = twin, options, state_path, on_lap
+        twin.model()
+        self.assembler = LapAssembler(twin.track.length_m, LapLimits().timeout_s)
+        self.laps: list[dict] = []
+        self.alignments: list[dict] = []
+        self.streak = 0
+        self._thread: threading.Thread | None = None
+        self._result: dict | None = None
+        self._prediction: tuple[float, object] | None = None
+        self.rebuild_from_log = False  # a corrupt state was set aside: replay the log with re-alignment
+        if state_path:
+            existed = os.path.lexists(state_path)
+            state = read_state(state_path, twin)
+            if state is None:
+                self.rebuild_from_log = existed
+            else:
+                twin.update(state["values"])
+                self.alignments = state["alignments"]
+                log.info("resumed state from %s: %s", state_path, state["values"])
+
+    def prediction(self):
+        """The twin's lap under its current parameters (cached until they change)."""
+        v = self.twin.space.get(self.o.address)
+        if self._prediction is None or self._prediction[0] != v:
+            self._prediction = (v, run_laps(self.twin, [{}], seed=self.o.seed)[0])
+        return self._prediction[1]
+
+    def feed(self, rec, replay: bool = False) -> None:
+        self._apply_alignment()
+        if rec is None:
+            return
+        lap = self.assembler.feed(rec)
+        if lap is not None:
+            self._lap(lap, replay)
+
+    def _lap(self, lap: RobotLap, replay: bool) -> None:
+        twin_lap = self.prediction()
+        entry = {"lap": lap.index, "robot_lap_time_s": lap.lap_time_s, "twin_lap_time_s": twin_lap.lap_time_s,
+                 self.o.address: self.twin.space.get(self.o.address), "replayed": replay, "implausible": lap.implausible}
+        if lap.implausible:  # reported, never acted on (a replayed one was reported when it arrived)
+            log.log(logging.INFO if replay else logging.WARNING, "lap %d ignored: %s", lap.index, lap.implausible)
+            entry["discrepancy"] = None
+            self.laps.append(entry)
+            if self.on_lap:
+                self.on_lap({**entry, "lap_record": lap, "twin_lap": twin_lap})
+            return
+        if lap.lap_time_s is not None and twin_lap.completed:
+            entry["discrepancy"] = (lap.lap_time_s - twin_lap.lap_time_s) / twin_lap.lap_time_s
+            tr = twin_lap.trace
+            if len(lap.t):
+                entry["position_rms"] = float(np.sqrt(np.mean(
+                    (np.interp(lap.t, tr.time_s, tr.column("position")) - lap.pos) ** 2)))
+        else:
+            entry["discrepancy"] = None  # one of them failed: that alone is a disagreement
+        self.laps.append(entry)
+        off = entry["discrepancy"] is None or abs(entry["discrepancy"]) > self.o.threshold
+        self.streak = self.streak + 1 if off else 0
+        if self.on_lap:
+            self.on_lap({**entry, "lap_record": lap, "twin_lap": twin_lap})
+        if not replay and self.streak >= self.o.k_laps and self._thread is None:
+            recent = [e["robot_lap_time_s"] for e in self.laps[-self.o.k_laps:] if e["robot_lap_time_s"]]
+            if recent:
+                self._start_alignment(float(np.mean(recent)), entry)
+
+    def _start_alignment(self, measured: float, why: dict) -> None:
+        values = dict(self.twin.space.values)
+        other = self.twin.clone()  # built in the background thread, never shared with the live loop
+        reason = (f"robot laps {measured:.3f} s (mean of {self.o.k_laps}) against the twin's "
+                  f"{why['twin_lap_time_s']:.3f} s for {self.streak} laps")
+        log.info("re-aligning %s: %s", self.o.address, reason)
+
+        def work():
+            try:
+                r = align_lap_time(other, measured, self.o.address, bounds=self.o.bounds, seed=self.o.seed)
+                self._result = {"explained": r.explained, "value": r.value, "message": r.message, "reason": reason,
+                                "measured_lap_time_s": measured, "before": values[self.o.address]}
+            except Exception as e:  # the live loop goes on; the failure is reported, not raised here
+                self._result = {"explained": False, "value": None, "message": f"alignment failed: {e}", "reason": reason}
+
+        self._thread = threading.Thread(target=work, name="align", daemon=True)
+        self._thread.start()
+
+    def _apply_alignment(self, wait: bool = False) -> None:
+        if self._thread is None or (self._thread.is_alive() and not wait):
+            return
+        self._thread.join()
+        r, self._thread, self._result = self._result, None, None
+        r["lap"] = len(self.laps)
+        r["time"] = time.time()
+        if r["explained"] and r["value"] is not None:
+            self.twin.set(self.o.address, r["value"])
+            log.info("aligned %s: %.5g → %.5g (%s)", self.o.address, r["before"], r["value"], r["reason"])
+        else:
+            log.warning("alignment did not explain the robot: %s", r["message"])
+        self.alignments.append(r)
+        self.streak = 0
+        self.save_state()
+
+    def finish(self) -> None:
+        """Wait for a running alignment and apply it."""
+        self._apply_alignment(wait=True)
+
+    def save_state(self) -> None:
+        if self.state_path:
+            write_json(self.state_path, {"values": {self.o.address: self.twin.space.get(self.o.address)},
+                                         "alignments": self.alignments}, STATE)

@@ -1,0 +1,200 @@
+"""Sensitivity sweeps: where a set of gains stops working.
+
+One or two batchable parameters (``motion.*``, ``motor.*``, ``control.*``, ``sensor.*`` responses) are varied over
+a grid, each grid point raced with several noise seeds; all laps run as one batch. Per grid point: the lap
+time (median and spread over the seeds that completed), the completion rate, the largest cross-track error and
+the median energy. One parameter gives a line chart with the failure region shaded; two give heat maps.
+Outputs (CSV, PNG, JSON) are written into a folder of their own, atomically (``lf_common.files.output_dir``).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import itertools
+import json
+import math
+import os
+from typing import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only, no display
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from lf_common.files import GENERATOR, json_safe, output_dir  # noqa: E402
+from twin.core.closed_loop import run_laps  # noqa: E402
+from twin.core.digital_twin import DigitalTwin  # noqa: E402
+from twin.errors import TwinError  # noqa: E402
+from twin.model.space import ChangeCost  # noqa: E402
+
+MAX_LAPS = 20_000  # one batch; ~0.3 MB of state per lap
+
+
+@dataclasses.dataclass(frozen=True)
+class Axis:
+    """One swept parameter: ``count`` evenly spaced values from ``lower`` to ``upper`` (inclusive)."""
+
+    address: str
+    lower: float
+    upper: float
+    count: int
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.lower) and math.isfinite(self.upper)):
+            raise TwinError(f"sweep {self.address}: LO and HI must be finite numbers")
+        if not self.lower < self.upper:
+            raise TwinError(f"sweep {self.address}: LO {self.lower:g} must be below HI {self.upper:g}")
+        if self.count < 2:
+            raise TwinError(f"sweep {self.address}: N must be at least 2, got {self.count}")
+
+    @property
+    def values(self) -> np.ndarray:
+        return np.linspace(self.lower, self.upper, self.count)
+
+
+@dataclasses.dataclass(frozen=True)
+class Point:
+    """One grid point: its values and what its laps (one per seed) did."""
+
+    values: dict[str, float]
+    lap_times_s: tuple[float, ...]  # the completed laps
+    laps: int
+    failures: tuple[str, ...]  # the failure of each lap that did not complete
+    max_cross_track_m: float  # the largest over all its laps
+    energy_j: float  # median over the completed laps (NaN if none)
+
+    @property
+    def completion(self) -> float:
+        return len(self.lap_times_s) / self.laps
+
+    @property
+    def median_s(self) -> float:
+        return float(np.median(self.lap_times_s)) if self.lap_times_s else math.nan
+
+    def row(self) -> dict:
+        t = self.lap_times_s
+        return {**self.values, "completion_rate": self.completion, "median_lap_time_s": self.median_s,
+                "min_lap_time_s": min(t) if t else math.nan, "max_lap_time_s": max(t) if t else math.nan,
+                "max_cross_track_m": self.max_cross_track_m, "median_energy_j": self.energy_j,
+                "laps": self.laps, "failures": ";".join(sorted(set(self.failures)))}
+
+
+def check_axes(twin: DigitalTwin, axes: Sequence[Axis]) -> None:
+    """One or two distinct parameters that can differ between the laps of one batch, inside their ranges."""
+    if not 1 <= len(axes) <= 2:
+        raise TwinError(f"sweep: give one or two parameters, got {len(axes)}")
+    if len({a.address for a in axes}) != len(axes):
+        raise TwinError("sweep: the same parameter twice")
+    for a in axes:
+        p = twin.space.parameter(a.address)
+        if p.cost is ChangeCost.REBUILD or p.integer:
+            raise TwinError(f"sweep {a.address}: rebuilds the robot or track (or is a whole number), so it cannot vary "
+                            "between the laps of one batch; sweep it with a design study")
+        p.check(f"sweep {a.address} LO", a.lower)
+        p.check(f"sweep {a.address} HI", a.upper)
+
+
+def grid_points(axes: Sequence[Axis]) -> list[dict[str, float]]:
+    """The sweep's grid points in order (the first axis slowest)."""
+    return [dict(zip([a.address for a in axes], map(float, combo))) for combo in itertools.product(*(a.values for a in axes))]
+
+
+def check_size(grid: Sequence[dict], seeds: Sequence[int]) -> None:
+    if len(grid) * len(seeds) > MAX_LAPS:
+        raise TwinError(f"sweep: {len(grid) * len(seeds)} laps is more than the {MAX_LAPS} one batch holds; use fewer "
+                        "points or seeds")
+
+
+def sweep(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int], nthread: int = 0) -> list[Point]:
+    """Every grid point × seed as one batch of laps; points in grid order (the first axis slowest)."""
+    check_axes(twin, axes)
+    grid = grid_points(axes)
+    check_size(grid, seeds)
+    laps = run_laps(twin, [g for g in grid for _ in seeds], seed=[s for _ in grid for s in seeds], nthread=nthread,
+                    keep_traces=False)
+    return points_of(grid, seeds, laps)
+
+
+def points_of(grid: Sequence[dict], seeds: Sequence[int], laps: Sequence) -> list[Point]:
+    """Each grid point's summary from its laps, which come point by point, seed by seed."""
+    k = len(seeds)
+    points = []
+    for i, g in enumerate(grid):
+        part = laps[i * k:(i + 1) * k]
+        done = [r for r in part if r.completed]
+        points.append(Point(g, tuple(r.lap_time_s for r in done), k, tuple(r.failure for r in part if not r.completed),
+                            max(r.max_cross_track_m for r in part),
+                            float(np.median([r.energy_j for r in done])) if done else math.nan))
+    return points
+
+
+def _failure_spans(x: np.ndarray, failed: np.ndarray) -> list[tuple[float, float]]:
+    """x-intervals to shade: each point with a failed lap, reaching half-way to its neighbours."""
+    edges = np.concatenate([[x[0]], (x[1:] + x[:-1]) / 2, [x[-1]]])
+    return [(edges[i], edges[i + 1]) for i in np.flatnonzero(failed)]
+
+
+def line_chart(path: str, axis: Axis, points: Sequence[Point], title: str) -> None:
+    x = axis.values
+    med = np.array([p.median_s for p in points])
+    lo = np.array([min(p.lap_times_s) if p.lap_times_s else np.nan for p in points])
+    hi = np.array([max(p.lap_times_s) if p.lap_times_s else np.nan for p in points])
+    panels = [("lap time [s]", med), ("laps completed [-]", np.array([p.completion for p in points])),
+              ("max cross-track error [mm]", np.array([p.max_cross_track_m * 1000 for p in points])),
+              ("energy per lap [J]", np.array([p.energy_j for p in points]))]
+    fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(7, 8), dpi=110)
+    spans = _failure_spans(x, np.array([p.completion < 1 for p in points]))
+    for ax, (name, y) in zip(axes, panels):
+        for a, b in spans:
+            ax.axvspan(a, b, color="tab:red", alpha=0.12, lw=0)
+        ax.plot(x, y, "o-", ms=3)
+        if name.startswith("lap time"):
+            ax.fill_between(x, lo, hi, alpha=0.25, label="min–max over seeds")
+            ax.legend(fontsize=8)
+        ax.set_ylabel(name, fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0].set_title(title + ("  (shaded: some laps fail)" if spans else ""), fontsize=10)
+    axes[-1].set_xlabel(axis.address)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def heat_map(path: str, axes: Sequence[Axis], points: Sequence[Point], title: str) -> None:
+    a, b = axes
+    shape = (a.count, b.count)
+    maps = [("median lap time [s]", np.array([p.median_s for p in points]).reshape(shape)),
+            ("laps completed [-]", np.array([p.completion for p in points]).reshape(shape))]
+    fig, panels = plt.subplots(1, 2, figsize=(11, 4.5), dpi=110)
+    extent = [b.lower, b.upper, a.lower, a.upper]
+    for ax, (name, m) in zip(panels, maps):
+        cmap = plt.get_cmap("viridis").with_extremes(bad="tab:red")  # red: no completed lap at all
+        image = ax.imshow(np.ma.masked_invalid(m), origin="lower", aspect="auto", extent=extent, cmap=cmap)
+        fig.colorbar(image, ax=ax, label=name)
+        ax.set_xlabel(b.address)
+        ax.set_ylabel(a.address)
+        ax.set_title(name + " (red: no lap completed)" if name.startswith("median") else name, fontsize=9)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def write_sweep(out_dir: str, axes: Sequence[Axis], points: Sequence[Point], meta: dict) -> dict[str, str]:
+    """``sweep.csv``, ``sweep.json`` and ``sweep.png`` into ``out_dir`` (new, empty, or ours), atomically."""
+    title = f"{meta['track']}: " + " × ".join(f"{a.address} {a.lower:g}…{a.upper:g}" for a in axes)
+    with output_dir(out_dir, "sweep folder") as tmp:
+        rows = [p.row() for p in points]
+        with open(os.path.join(tmp, "sweep.csv"), "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+        with open(os.path.join(tmp, "sweep.json"), "w") as f:
+            json.dump(json_safe({"generator": GENERATOR, **meta, "axes": [dataclasses.asdict(a) for a in axes],
+                                 "points": rows}), f, indent=1, allow_nan=False)
+        chart = os.path.join(tmp, "sweep.png")
+        (line_chart(chart, axes[0], points, title) if len(axes) == 1 else heat_map(chart, axes, points, title))
+    out = os.path.abspath(out_dir)
+    return {"folder": out, **{k: os.path.join(out, f"sweep.{k}") for k in ("csv", "json", "png")}}

@@ -1,0 +1,207 @@
+"""Judging a lap from the closed loop's trace: progress along the centre line, completion, failures.
+
+The robot starts on the start line at progress 0. Progress is the arc length of the centre-line point
+nearest the centre of rotation (computed by the C loop at every tick, ``lf_locate``), unwrapped tick by tick; the lap completes when it reaches the track length
+(the crossing time is interpolated linearly between the two control ticks around it). A lap fails when
+
+* ``off_track``: the centre of rotation is more than ``max_cross_track_m`` from the line, or its progress
+  jumps by more than ``max_progress_jump_m`` in one tick (it crossed to another part of the track);
+* ``line_lost``: no sensor has seen the line (calibrated value > 200) for ``max_line_lost_s``;
+* ``timeout``: the lap is not done after ``timeout_s`` of simulated time;
+* ``diverged``: the physics produced a non-finite state or MuJoCo raised an error;
+* ``calibration``: after the calibration turn some sensor's range max − min is below
+  ``min_calibration_range_us`` (it never saw both the line and the ground), or the turn would take longer
+  than ``calibration_timeout_s`` of simulated time (then it is not simulated at all);
+* ``refused``: the C loop found that a simulation's userdata did not fit the model it was stepped with
+  (a program error, reported as a result rather than a crash).
+
+A failed lap is a result, not an exception.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from mjcf.track import Track
+from twin.core import native as core
+from twin.errors import TwinError
+
+COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED, CALIBRATION, REFUSED = (
+    "completed", "off_track", "line_lost", "timeout", "diverged", "calibration", "refused")
+COL = {name: i for i, name in enumerate(core.RECORD_FIELDS)}
+
+
+@dataclasses.dataclass(frozen=True)
+class LapLimits:
+    """Failure thresholds (see the module docstring). Lengths [m], times [s], readings [µs]."""
+
+    max_cross_track_m: float = 0.10
+    max_progress_jump_m: float = 0.10
+    max_line_lost_s: float = 0.5
+    timeout_s: float = 60.0
+    min_calibration_range_us: float = 300.0
+    # the default turn takes 1.9 s; 20 s allows a turn ten times slower, while a near-stalled turn (hours of
+    # simulated time, e.g. control.cal_duty 0.01 with control.full_speed 1) fails at once instead of hanging
+    calibration_timeout_s: float = 20.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise TwinError(f"lap limit {f.name}: must be a finite number > 0, got {v!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class LapTrace:
+    """The run at every control tick: ``records`` (n, RECORD_WORDS) as written by the C loop, and the
+    centre line's view of it. Columns by name: ``trace.column("e_rad")``."""
+
+    records: np.ndarray
+    progress_m: np.ndarray  # unwrapped progress along the centre line
+    cross_track_m: np.ndarray  # signed distance of the centre of rotation from the line (+ left)
+    count: int  # sensors
+
+    def column(self, name: str) -> np.ndarray:
+        return self.records[:, COL[name]]
+
+    @property
+    def time_s(self) -> np.ndarray:
+        return self.column("time_s")
+
+    @property
+    def raw_us(self) -> np.ndarray:
+        return self.records[:, core.RAW_COLUMN : core.RAW_COLUMN + self.count]
+
+    @property
+    def calibrated(self) -> np.ndarray:
+        return self.records[:, core.CALIBRATED_COLUMN : core.CALIBRATED_COLUMN + self.count]
+
+
+@dataclasses.dataclass(frozen=True)
+class LapResult:
+    """One lap. ``lap_time_s`` is None unless ``completed``; ``failure`` names why not (module docstring)."""
+
+    completed: bool
+    failure: str | None
+    detail: str
+    lap_time_s: float | None
+    simulated_s: float  # simulated time until the lap ended or failed
+    distance_m: float  # progress along the centre line when it ended
+    track_length_m: float
+    max_cross_track_m: float
+    mean_cross_track_m: float
+    energy_j: float
+    calibration_min_us: tuple[int, ...]
+    calibration_max_us: tuple[int, ...]
+    parameters: dict
+    trace: LapTrace | None = None
+
+    def summary(self) -> dict:
+        """The JSON-ready fields (no trace)."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "trace"}
+        out["calibration_min_us"], out["calibration_max_us"] = list(self.calibration_min_us), list(self.calibration_max_us)
+        return out
+
+
+class LapJudge:
+    """Follows one simulation's trace chunk by chunk and decides when and how its lap ends."""
+
+    def __init__(self, track: Track, limits: LapLimits, keep_trace: bool = True):
+        self.track, self.limits, self.keep_trace = track, limits, keep_trace
+        self.u_last: float | None = None  # unwrapped progress at the last tick
+        self.s_last = 0.0
+        self.prev = (0.0, 0.0, 0.0)  # time, progress and energy at the last tick
+        self.t_seen = 0.0  # last time the line was seen
+        self.n = 0
+        self.abs_sum = 0.0
+        self.abs_max = 0.0
+        self.chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.outcome: tuple[str, str, float, float, float] | None = None  # failure, detail, time, progress, energy
+
+    @property
+    def done(self) -> bool:
+        return self.outcome is not None
+
+    def feed(self, rec: np.ndarray) -> None:
+        """Take the next ticks: records (k, RECORD_WORDS) with the C loop's progress and offset columns."""
+        if self.done or len(rec) == 0:
+            return
+        s, offset = rec[:, COL["progress_m"]], rec[:, COL["offset_m"]]
+        length = self.track.length_m
+        t = rec[:, COL["time_s"]]
+        if self.u_last is None:  # the first tick: the start line, wherever 0 wraps
+            self.s_last = float(s[0])
+            self.u_last = float(s[0] if s[0] < length / 2 else s[0] - length)
+            self.prev = (float(t[0]), self.u_last, float(rec[0, COL["energy_j"]]))
+        du = np.diff(np.concatenate([[self.s_last], s]))
+        du = np.mod(du + length / 2, length) - length / 2
+        u = self.u_last + np.cumsum(du)
+        seen = rec[:, COL["line_seen"]] > 0
+        last_seen = np.maximum.accumulate(np.where(seen, t, -np.inf))
+        last_seen = np.maximum(last_seen, self.t_seen)
+        lim = self.limits
+        finite = np.isfinite(rec[:, COL["x_m"]]) & np.isfinite(rec[:, COL["y_m"]])
+        events = [
+            (~finite, DIVERGED, "the physics produced a non-finite pose"),
+            (np.abs(offset) > lim.max_cross_track_m, OFF_TRACK, f"more than {lim.max_cross_track_m * 100:g} cm from the line"),
+            (np.abs(du) > lim.max_progress_jump_m, OFF_TRACK, "cut across to another part of the track"),
+            (t - last_seen > lim.max_line_lost_s, LINE_LOST, f"line not seen for {lim.max_line_lost_s:g} s"),
+            (u >= length, COMPLETED, "lap completed"),
+            (t > lim.timeout_s, TIMEOUT, f"no lap after {lim.timeout_s:g} s"),
+        ]
+        end, why = len(rec), None
+        for mask, code, detail in events:
+            hit = np.flatnonzero(mask)
+            if len(hit) and hit[0] < end:  # the earliest event wins; ties go to the one listed first
+                end, why = int(hit[0]), (code, detail)
+        keep = slice(0, end + 1 if why else end)
+        self._account(rec[keep], u[keep], offset[keep])
+        prev = self.prev if end == 0 else (float(t[end - 1]), float(u[end - 1]), float(rec[end - 1, COL["energy_j"]]))
+        self.u_last, self.s_last, self.t_seen = float(u[-1]), float(s[-1]), float(last_seen[-1])
+        self.prev = (float(t[-1]), float(u[-1]), float(rec[-1, COL["energy_j"]]))
+        if why is None:
+            return
+        code, detail = why
+        t_end, u_end, energy = float(t[end]), float(u[end]), float(rec[end, COL["energy_j"]])
+        if code == COMPLETED and u_end > prev[1]:
+            f = (length - prev[1]) / (u_end - prev[1])  # interpolate the crossing between two ticks
+            t_end = prev[0] + f * (t_end - prev[0])
+            energy = prev[2] + f * (energy - prev[2])
+            u_end = length
+        self.outcome = (code, detail, t_end, u_end, energy)
+
+    def _account(self, rec: np.ndarray, u: np.ndarray, offset: np.ndarray) -> None:
+        if len(rec) == 0:
+            return
+        # running sums from the C loop, so the statistics do not depend on how the trace was chunked
+        self.n += len(rec)
+        self.abs_sum = float(rec[-1, COL["offset_abs_sum_m"]])
+        self.abs_max = float(rec[-1, COL["offset_abs_max_m"]])
+        if self.keep_trace:
+            self.chunks.append((rec.copy(), u.copy(), offset.copy()))
+
+    def fail(self, code: str, detail: str, t: float, energy: float) -> None:
+        """End the lap from outside the trace (a MuJoCo error, a failed calibration)."""
+        if not self.done:
+            self.outcome = (code, detail, t, self.u_last or 0.0, energy)
+
+    def result(self, count: int, cal_min, cal_max, parameters: dict) -> LapResult:
+        if self.outcome is None:
+            raise TwinError("lap judge: the lap has not ended")
+        code, detail, t_end, u_end, energy = self.outcome
+        trace = None
+        if self.keep_trace and self.chunks:
+            rec, u, off = (np.concatenate(x) for x in zip(*self.chunks))
+            trace = LapTrace(rec, u, off, count)
+        completed = code == COMPLETED
+        return LapResult(
+            completed=completed, failure=None if completed else code, detail=detail,
+            lap_time_s=t_end if completed else None, simulated_s=t_end, distance_m=max(0.0, u_end),
+            track_length_m=self.track.length_m, max_cross_track_m=self.abs_max,
+            mean_cross_track_m=self.abs_sum / self.n if self.n else 0.0, energy_j=energy,
+            calibration_min_us=tuple(int(v) for v in cal_min), calibration_max_us=tuple(int(v) for v in cal_max),
+            parameters=parameters, trace=trace,
+        )

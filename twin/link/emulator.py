@@ -1,0 +1,208 @@
+"""A stand-in for the physical robot: a twin with hidden parameters and its own noise seed, driving lap after lap
+and streaming its telemetry in the wire form (:mod:`twin.telemetry.wire`) at real-time pace (or ``speed`` times faster),
+on a pseudo-terminal it creates or on a TCP port of 127.0.0.1, so the live link is tested through a real
+serial device.
+
+Each lap is simulated ahead of time (from the start line, as the robot crosses it) and then streamed with its
+own sample times, offset by the laps before it; lap k uses noise seed ``seed + k``.
+
+It never outlives its purpose: with nobody reading (no TCP client connected, or a pty whose buffer stays full)
+for ``idle_timeout_s`` it stops (:class:`NoReader`). A TCP client that leaves is waited for again, for that long,
+so a reader that restarts carries on with the same robot.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import logging
+import os
+import select
+import socket
+import struct
+import termios
+import time
+import tty
+from typing import Callable, Iterator
+
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+from twin.errors import TwinError
+from twin.core.lap import COL
+from twin.telemetry.wire import Event, Header, Sample, WireError, decode, encode
+
+log = logging.getLogger(__name__)
+
+
+def lap_records(twin: DigitalTwin, seed: int, every: int, laps: int | None) -> Iterator[tuple[float, str]]:
+    """(time since power-up [s], wire line) for lap after lap."""
+    offset = 0.0
+    header = encode(Header(int(twin.space.get("sensor.count")), twin.space.get("control.dt"), every))
+    k = 0
+    while laps is None or k < laps:
+        lap = run_laps(twin, [{}], seed=seed + k)[0]
+        yield offset, header
+        yield offset, encode(Event(offset, "START"))
+        for r in lap.trace.records[::every]:
+            t = offset + float(r[COL["time_s"]])
+            yield t, encode(Sample(t, int(r[COL["position"]]), int(r[COL["line_seen"]]),
+                                   float(r[COL["wheel_left_radps"]]), float(r[COL["wheel_right_radps"]])))
+        end = offset + (lap.lap_time_s if lap.completed else lap.simulated_s)
+        yield end, encode(Event(end, "LAP", lap_time_s=lap.lap_time_s) if lap.completed
+                          else Event(end, "FAIL", reason=lap.failure))
+        log.info("lap %d: %s", k, f"{lap.lap_time_s:.3f} s" if lap.completed else lap.failure)
+        offset = end
+        k += 1
+
+
+def firmware_lap_records(twin: DigitalTwin, elf: str | None, seed: int, every: int,
+                         laps: int | None) -> Iterator[tuple[float, str]]:
+    """(time since power-up [s], wire line) for lap after lap of the robot's own firmware on the emulated MCU
+    (:func:`twin.pil.lap.run_pil_lap`): its UART lines as it sent them, and after each lap the LAP or FAIL event of a
+    timing gate at the finish line (the robot itself cannot tell a lap from the next)."""
+    from twin.pil.lap import run_pil_lap  # needs the simavr glue only when asked for
+
+    offset, k = 0.0, 0
+    while laps is None or k < laps:
+        lines: list[tuple[float, str]] = []
+        lap, _ = run_pil_lap(twin, elf, seed=seed + k, keep_trace=False, telemetry_every=every,
+                             on_line=lambda t, line: lines.append((t, line)))
+        span = lap.lap_time_s if lap.completed else lap.simulated_s
+        for t, line in lines:
+            sample = _sample_time(line)  # its own clock; other lines come with their 0.1 s chunk's time
+            t = sample if sample is not None else max(t, 0.0)  # what came before the button press, at the start
+            if t <= span:  # the robot is picked up at the finish: what it sends after goes unheard
+                yield offset + t, line
+        yield offset + span, encode(Event(span, "LAP", lap_time_s=lap.lap_time_s) if lap.completed
+                                    else Event(span, "FAIL", reason=lap.failure))
+        log.info("lap %d (firmware on the MCU): %s", k, f"{lap.lap_time_s:.3f} s" if lap.completed else lap.failure)
+        offset += span
+        k += 1
+
+
+def _sample_time(line: str) -> float | None:
+    try:
+        record = decode(line)
+    except WireError:
+        return None
+    return record.t if isinstance(record, Sample) else None
+
+
+def stream(lines: Iterator[tuple[float, str]], write: Callable[[bytes], None], speed: float,
+           echo: Callable[[str], None] | None = None) -> None:
+    """Write lines when their time comes: simulated time / speed after the first line."""
+    start = None
+    for t, line in lines:
+        now = time.monotonic()
+        if start is None:
+            start = now - t / speed
+        delay = start + t / speed - now
+        if delay > 0:
+            time.sleep(delay)
+        elif delay < -0.5:  # fell behind (a lap was being simulated): carry on from here, keep the spacing
+            start -= delay
+        write(line.encode("ascii"))
+        if echo:
+            echo(line)
+
+
+class NoReader(Exception):
+    """Nobody read the stream for the idle time: the emulator's job is over."""
+
+
+def check_link_path(link: str) -> None:
+    """``--link`` may be created, or replace a symlink of ours (one pointing at a pty); nothing else is replaced."""
+    if os.path.islink(link):
+        if not os.readlink(link).startswith("/dev/pts/"):
+            raise TwinError(f"{link}: is a symbolic link to {os.readlink(link)}, not one this emulator made; choose another --link")
+    elif os.path.exists(link):
+        raise TwinError(f"{link}: exists and is not a link this emulator made; choose another --link")
+    elif not os.path.isdir(os.path.dirname(os.path.abspath(link))):
+        raise TwinError(f"{link}: folder {os.path.dirname(os.path.abspath(link))} does not exist")
+
+
+def open_pty(link: str | None = None) -> tuple[int, int, str]:
+    """A pseudo-terminal pair in raw mode: (master fd, slave fd, slave path); optionally a stable symlink to the
+    slave at ``link`` (see :func:`check_link_path`; :func:`release_link` removes it)."""
+    if link:
+        check_link_path(link)
+    master, slave = os.openpty()
+    tty.setraw(slave)  # no echo, no newline translation: bytes pass as sent
+    path = os.ttyname(slave)
+    if link:
+        tmp = f"{link}.{os.getpid()}.tmp"
+        os.symlink(path, tmp)
+        os.replace(tmp, link)
+    return master, slave, path
+
+
+def release_link(link: str, tty_path: str) -> None:
+    """Remove ``link`` if it still points at our pty: the kernel soon gives that pty's number to another
+    program (a terminal), which a reader following a stale link would open."""
+    try:
+        if os.readlink(link) == tty_path:
+            os.unlink(link)
+    except OSError:
+        pass  # gone, or replaced by another emulator: not ours any more
+
+
+def pty_writer(master: int, idle_timeout_s: float) -> Callable[[bytes], None]:
+    """Write to a pty master; a buffer that stays full for ``idle_timeout_s`` (nobody reads) raises NoReader."""
+
+    def write(data: bytes) -> None:
+        while data:
+            _, ready, _ = select.select([], [master], [], idle_timeout_s)
+            if not ready:
+                raise NoReader(f"nobody read the pty for {idle_timeout_s:g} s")
+            data = data[os.write(master, data):]
+
+    return write
+
+
+DRAINED_S = 0.25  # [s] the pty must stay empty this long: a byte just written sits in the kernel's flip buffer,
+                  # uncounted, until a worker moves it to the reader's queue
+
+
+def drain_pty(slave: int, idle_timeout_s: float) -> None:
+    """Wait until the reader has taken everything written (closing the master discards what is left unread):
+    until the pty has stayed empty for ``DRAINED_S``; NoReader if the reader takes nothing for ``idle_timeout_s``."""
+    waiting, progress, empty_since = _unread(slave), time.monotonic(), time.monotonic()
+    while True:
+        time.sleep(0.02)
+        now, left = time.monotonic(), _unread(slave)
+        if left == 0 and now - empty_since >= DRAINED_S:
+            return
+        if left:
+            empty_since = now
+        if left < waiting:
+            progress = now
+        elif left and now - progress > idle_timeout_s:
+            raise NoReader(f"nobody read the last {left} bytes on the pty for {idle_timeout_s:g} s")
+        waiting = left
+
+
+def _unread(slave: int) -> int:
+    """Bytes written to the pty that its reader has not read yet."""
+    return struct.unpack("i", fcntl.ioctl(slave, termios.FIONREAD, b"\0\0\0\0"))[0]
+
+
+def serve_tcp(port: int) -> socket.socket:
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        server.bind(("127.0.0.1", port))
+    except OSError as e:
+        server.close()
+        raise TwinError(f"--tcp {port}: cannot listen on 127.0.0.1:{port} ({e.strerror or e})") from None
+    server.listen(1)
+    return server
+
+
+def accept(server: socket.socket, idle_timeout_s: float) -> socket.socket:
+    """The next client, waiting at most ``idle_timeout_s``; NoReader otherwise."""
+    server.settimeout(idle_timeout_s)
+    try:
+        conn, _ = server.accept()
+    except socket.timeout:
+        raise NoReader(f"no client connected for {idle_timeout_s:g} s") from None
+    conn.settimeout(idle_timeout_s)  # a client that stops reading is gone
+    return conn

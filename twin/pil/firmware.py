@@ -1,0 +1,192 @@
+"""The robot's firmware as an AVR program: built with avr-gcc, checked, and configured through its EEPROM image.
+
+The program (``twin/csrc/firmware/avr``) is the portable firmware the twin's C callback runs (``line_follower.c``,
+``lf_wire.c``) with the drivers of the Pololu 3pi (ATmega328P at 20 MHz; pin map in ``board_3pi.h``). One ELF
+serves every robot: its parameters live in EEPROM (``config.h``), written by :func:`config_image` here, by the
+processor-in-the-loop glue in the twin, and with ``avrdude -U eeprom:w:…`` on the robot.
+"""
+
+from __future__ import annotations
+
+import binascii
+import dataclasses
+import functools
+import hashlib
+import os
+import re
+import shutil
+import struct
+import subprocess
+
+from lf_common.cache import cache_dir, cached_folder
+from twin.model.control import ControlParams
+from twin.errors import TwinError
+
+MCU = "atmega328p"
+F_CPU_HZ = 20_000_000
+BOARD = "pololu-3pi-atmega328p"
+BOARD_MAX_SENSORS = 8  # board_3pi_pins.h: PC0..PC4, then the LCD's control lines
+FLASH_BYTES, RAM_BYTES = 32768, 2048  # the ATmega328P's
+VECTORS = 26  # interrupt vectors of the ATmega328P, reset included (datasheet, "Interrupts")
+TIMER1_HZ = F_CPU_HZ / 8  # the tick and the sensor reads count at 0.4 µs
+QTR_TIMEOUT_MAX_US = 26000  # LF_QTR_TIMEOUT_MAX_US: Timer1's 16-bit count
+SOURCE_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "csrc", "firmware")
+PROGRAMS = {
+    "robot": ("avr/main.c", "avr/qtr_rc.c", "avr/motors.c", "avr/uart.c", "avr/config.c", "line_follower.c", "lf_wire.c"),
+    "selftest": ("avr/selftest.c", "line_follower.c", "lf_wire.c"),
+}
+CFLAGS = ("-Os", "-std=gnu99", "-Wall", "-Wextra", "-Werror", "-ffunction-sections", "-fdata-sections",
+          "-Wl,--gc-sections")
+TRACE_SYMBOLS = ("fw_state", "fw_raw_us", "fw_tick_mode", "fw_ticks_done")  # what the glue reads each tick
+INSTALL_AVR_GCC = "apt-get install gcc-avr avr-libc binutils-avr"
+
+CONFIG_MAGIC = 0x3143464C  # "LFC1"
+_PARAMS = struct.Struct("<i15fi")  # lf_params on the MCU: count, 15 lf_real (32-bit float), cal_sweeps
+_PARAM_FIELDS = ("pitch_m", "sensor_distance_m", "v_max", "k_b", "k_p", "k_i", "k_d", "dt_s", "wheel_radius_m",
+                 "half_track_m", "wheel_speed_max", "accel_max", "integral_limit", "cal_duty", "cal_sweep_rad")
+CONFIG_BYTES = 4 + 2 + _PARAMS.size + 2 + 2 + 2
+
+
+def check_config(params: ControlParams, timeout_us: float) -> None:
+    """What the 3pi build can run: raise TwinError naming the parameter otherwise."""
+    if params.count > BOARD_MAX_SENSORS:
+        raise TwinError(f"sensor.count: the {BOARD} firmware reads at most {BOARD_MAX_SENSORS} sensors "
+                        f"(PC0..PC4 and the LCD's three control lines), got {params.count}")
+    if not 1 <= round(timeout_us) <= QTR_TIMEOUT_MAX_US:
+        raise TwinError(f"sensor.timeout: the firmware times the sensors with a 16-bit timer at 0.4 µs, so at most "
+                        f"{QTR_TIMEOUT_MAX_US} µs, got {timeout_us:g}")
+    counts = params.dt_s * TIMER1_HZ
+    if not 1 <= round(counts) <= 65535 or abs(counts - round(counts)) > 1e-6 * counts:
+        raise TwinError(f"control.dt: the firmware's tick is a whole number of 0.4 µs Timer1 counts up to "
+                        f"{65535 / TIMER1_HZ * 1000:.1f} ms, got {params.dt_s * 1000:g} ms")
+
+
+def config_image(params: ControlParams, timeout_us: float, telemetry_every: int) -> bytes:
+    """The EEPROM image ``config.h`` describes, for these parameters (checked with :func:`check_config`)."""
+    check_config(params, timeout_us)
+    if not 1 <= telemetry_every <= 65535:
+        raise TwinError(f"telemetry every: 1..65535 ticks, got {telemetry_every}")
+    body = struct.pack("<IH", CONFIG_MAGIC, CONFIG_BYTES) + _PARAMS.pack(
+        params.count, *(getattr(params, f) for f in _PARAM_FIELDS), params.cal_sweeps
+    ) + struct.pack("<HH", round(timeout_us), telemetry_every)
+    return body + struct.pack("<H", binascii.crc_hqx(body, 0))  # CRC-16/XMODEM, as avr-libc's _crc_xmodem_update
+
+
+def intel_hex(data: bytes) -> str:
+    """``data`` at address 0 as Intel HEX (what avrdude's ``-U eeprom:w:FILE`` reads)."""
+    lines = []
+    for at in range(0, len(data), 16):
+        chunk = data[at: at + 16]
+        record = bytes([len(chunk), at >> 8, at & 0xFF, 0]) + chunk
+        lines.append(":" + (record + bytes([-sum(record) & 0xFF])).hex().upper())
+    return "\n".join(lines + [":00000001FF"]) + "\n"
+
+
+def _avr_gcc() -> str:
+    gcc = shutil.which("avr-gcc")
+    if not gcc:
+        raise TwinError(f"avr-gcc is not installed; the firmware is built with it ({INSTALL_AVR_GCC})")
+    return gcc
+
+
+@functools.lru_cache(maxsize=4)
+def _compiler_version(gcc: str) -> str:
+    return subprocess.run([gcc, "--version"], capture_output=True, text=True, timeout=30).stdout
+
+
+def _source_digest(gcc: str) -> str:
+    h = hashlib.sha256()
+    for root, _, files in sorted(os.walk(SOURCE_DIR)):
+        for name in sorted(files):
+            if name.endswith((".c", ".h")):
+                path = os.path.join(root, name)
+                h.update(os.path.relpath(path, SOURCE_DIR).encode() + b"\0")
+                with open(path, "rb") as f:
+                    h.update(f.read())
+    h.update(_compiler_version(gcc).encode())
+    h.update(" ".join(CFLAGS).encode())
+    return h.hexdigest()[:16]
+
+
+def build(program: str = "robot") -> str:
+    """The ELF of ``program`` (``robot`` or ``selftest``) for the ATmega328P, built once per source version."""
+    gcc = _avr_gcc()
+    sources = [os.path.join(SOURCE_DIR, s) for s in PROGRAMS[program]]
+
+    def compile_into(folder: str) -> None:
+        out = os.path.join(folder, f"{program}.elf")
+        done = subprocess.run([gcc, f"-mmcu={MCU}", f"-DF_CPU={F_CPU_HZ}UL", *CFLAGS, "-o", out, *sources, "-lm"],
+                              capture_output=True, text=True, timeout=300)
+        if done.returncode:
+            lines = done.stderr.strip().splitlines() or ["no message"]
+            first = next((line for line in lines if "error" in line), lines[0])
+            raise TwinError(f"avr-gcc could not build the {program} firmware: {first}")
+
+    folder = cached_folder(os.path.join(cache_dir(), "firmware", f"{program}-{_source_digest(gcc)}"), compile_into,
+                           f"the {program} firmware")
+    return os.path.join(folder, f"{program}.elf")
+
+
+@dataclasses.dataclass(frozen=True)
+class ElfInfo:
+    """An AVR program: its flash and RAM use [bytes], the addresses of its globals (data space) and their sizes."""
+
+    path: str
+    flash_bytes: int
+    ram_bytes: int
+    symbols: dict[str, int]
+    sizes: dict[str, int]
+
+
+def check_elf(path: str, need: tuple[str, ...] = ()) -> ElfInfo:
+    """An ELF built for the ATmega328P with the symbols ``need``, or a one-line TwinError saying why not."""
+    from elftools.common.exceptions import ELFError
+    from elftools.elf.elffile import ELFFile
+
+    if os.path.isdir(path):
+        raise TwinError(f"{path}: is a folder; --firmware takes c, avr or an ELF file")
+    if not os.path.isfile(path):
+        raise TwinError(f"{path}: no such firmware file; --firmware takes c, avr or an ELF file")
+    try:
+        with open(path, "rb") as f:
+            elf = ELFFile(f)
+            machine, arch, device = elf["e_machine"], elf["e_flags"] & 0x7F, _device_name(elf)
+            symtab = elf.get_section_by_name(".symtab")
+            symbols = {s.name: int(s["st_value"]) for s in symtab.iter_symbols() if s.name} if symtab else None
+            sizes = {s.name: int(s["st_size"]) for s in symtab.iter_symbols() if s.name} if symtab else {}
+            size = {s.name: s["sh_size"] for s in elf.iter_sections()}
+    except (ELFError, struct.error, ValueError) as e:
+        raise TwinError(f"{path}: not a readable ELF file ({e})") from None
+    except OSError as e:
+        raise TwinError(f"{path}: cannot read it ({e.strerror or e})") from None
+    if machine != "EM_AVR":
+        raise TwinError(f"{path}: built for {str(machine).replace('EM_', '')}, not an AVR; build it with "
+                        f"avr-gcc -mmcu={MCU}")
+    if arch != 5:
+        raise TwinError(f"{path}: built for avr{arch}, not the ATmega328P's avr5; build it with -mmcu={MCU}")
+    if device and device != MCU:
+        raise TwinError(f"{path}: built for the {device}, not the {MCU}; build it with -mmcu={MCU}")
+    if symbols is None:
+        raise TwinError(f"{path}: has no symbol table (stripped?); the twin reads the firmware's globals by name")
+    vectors = [int(m.group(1)) for n in symbols if (m := re.fullmatch(r"__vector_(\d+)", n))]
+    if vectors and max(vectors) + 1 != VECTORS:
+        raise TwinError(f"{path}: has {max(vectors) + 1} interrupt vectors, the {MCU} has {VECTORS}: it was "
+                        f"built for another MCU; build it with -mmcu={MCU}")
+    missing = [n for n in need if n not in symbols]
+    if missing:
+        raise TwinError(f"{path}: has no {', '.join(missing)}; the twin traces each tick from these globals of "
+                        "twin/csrc/firmware/avr/main.c, so build the firmware from that source")
+    data = {n: v - 0x800000 for n, v in symbols.items() if v >= 0x800000}
+    return ElfInfo(path, size.get(".text", 0) + size.get(".data", 0), size.get(".data", 0) + size.get(".bss", 0), data,
+                   {n: sizes[n] for n in data})
+
+
+def _device_name(elf) -> str | None:
+    """The MCU avr-gcc wrote in the .note.gnu.avr.deviceinfo note, or simavr's .mmcu section, if there is one."""
+    for name in (".note.gnu.avr.deviceinfo", ".mmcu"):
+        section = elf.get_section_by_name(name)
+        if section is not None:
+            found = re.findall(rb"(at(?:mega|tiny|xmega)[0-9a-z]+)", section.data())
+            if found:
+                return found[-1].decode()
+    return None

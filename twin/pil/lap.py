@@ -1,0 +1,238 @@
+"""Processor in the loop: a lap driven by the robot's firmware binary on an emulated ATmega328P (:mod:`twin.pil.mcu`).
+
+The lap runs as on the robot: power-up, the firmware's calibration turn over the start line, the robot put back on
+the start line, button B pressed, line following. It is judged as every lap is (:class:`twin.core.lap.LapJudge`), from
+a trace the glue writes at each tick the firmware finishes, out of the firmware's own RAM. On top of a lap's
+result it reports the MCU's figures (:class:`McuReport`) and the UART's telemetry lines.
+
+A firmware that stops (the MCU halts or crashes), stops ticking, never releases a sensor line or never writes
+its motors' PWM for ``stall_s`` of simulated time ends its lap as ``firmware_stalled``: a result, not a hang.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import mujoco
+import numpy as np
+
+from mjcf.world import START_KEY
+from twin.pil import firmware as fw
+from twin.core import native as core
+from twin.core.calibration_cause import calibration_cause
+from twin.core.closed_loop import check_seed, setup
+from twin.model.control import CALIBRATE, IDLE, RUN, calibration_ticks
+from twin.core.digital_twin import DigitalTwin
+from twin.core.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
+from twin.errors import TwinError
+from twin.pil.mcu import RUNNING, Mcu, state_size
+from twin.core.variant import Variant
+from twin.telemetry.wire import WireError, decode
+
+STALLED = "firmware_stalled"
+PIL_MAGIC = core.MAGIC + 1.0  # the C callback acts on core.MAGIC only: this head is the glue's
+CHUNK_S = 0.1  # simulated seconds per call into the glue: Python judges the lap and drains the UART this often
+TELEMETRY_EVERY = 2  # one sample line every 2 ticks, as the emulator's default
+
+
+@dataclasses.dataclass(frozen=True)
+class McuReport:
+    """What the firmware cost the MCU, and how well it timed its sensors. Cycles at ``f_cpu_hz``; busy = awake (not
+    in SLEEP), per control tick of the lap (calibration excluded); headroom = 1 − max busy / period."""
+
+    mcu: str
+    board: str
+    f_cpu_hz: int
+    elf: str
+    flash_bytes: int
+    flash_total_bytes: int
+    ram_bytes: int
+    ram_total_bytes: int
+    period_cycles: int
+    busy_cycles_max: int
+    busy_cycles_mean: float
+    headroom: float
+    ticks: int
+    overruns: int
+    read_error_max_us: float  # |sensor reading the MCU timed − the physics' decay time|, lines that fell in time
+    read_error_mean_us: float  # signed mean of the same: the timing's bias
+    telemetry_lines: int
+    telemetry_bad_lines: int
+    telemetry_dropped_lines: int
+    uart_bytes_lost: int
+
+    def summary(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def stall_limit_s(dt_s: float) -> float:
+    """The watchdog's window: ten control periods, at least 0.1 s."""
+    return max(0.1, 10 * dt_s)
+
+
+def runnable_firmware(twin: DigitalTwin, elf_path: str | None = None) -> fw.ElfInfo:
+    """The ELF (default: built from twin/csrc/firmware/avr), checked against the twin's parameters, the board and
+    the simavr glue; TwinError naming the problem otherwise."""
+    fw.check_config(twin.control_params(), twin.sensor_model().timeout_us)
+    elf = fw.check_elf(elf_path or fw.build("robot"), need=fw.TRACE_SYMBOLS)
+    if elf.sizes["fw_state"] != state_size():  # state_size() loads the glue: a missing simavr is said here
+        raise TwinError(f"{elf.path}: its fw_state is {elf.sizes['fw_state']} bytes, the twin reads {state_size()}: it was "
+                        "built from another version of line_follower.h")
+    return elf
+
+
+def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, limits: LapLimits = LapLimits(),
+                keep_trace: bool = True, on_line: Callable[[float, str], None] | None = None,
+                telemetry_every: int = TELEMETRY_EVERY) -> tuple[LapResult, McuReport]:
+    """Run one lap with the firmware ELF (default: built from twin/csrc/firmware/avr) on the MCU.
+
+    ``on_line(t, line)`` receives each telemetry line the UART sent, with the simulated time [s] of the chunk it
+    came in (lap time from the button press; calibration lines have negative times); the firmware sends a sample
+    line every ``telemetry_every`` ticks."""
+    check_seed(seed)
+    lap = Variant.of(twin, {})
+    params, sensor = lap.params, lap.sensor
+    elf = runnable_firmware(twin, elf_path)
+    model = twin.model()
+    data = mujoco.MjData(model)
+    judge = LapJudge(twin.track, limits, keep_trace)
+    telemetry = _Telemetry(on_line)
+    with Mcu(elf) as mcu:
+        mcu.eeprom(fw.config_image(params, sensor.timeout_us, telemetry_every))
+        sim = _place(model, data, twin, lap, seed)
+        mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
+        steps = max(1, round(CHUNK_S / model.opt.timestep))
+        cal_min, cal_max = [], []
+        turn_s = calibration_ticks(params) * params.dt_s
+        if turn_s > limits.calibration_timeout_s:
+            judge.fail(CALIBRATION, f"the calibration turn would take {turn_s:.6g} s (limit "
+                       f"{limits.calibration_timeout_s:g} s simulated)", 0.0, 0.0)
+        else:
+            _calibrate(mcu, data, sim, judge, telemetry, steps, limits)
+        if not judge.done:
+            state = mcu.state()
+            cal_min, cal_max = list(state.cal_min[: params.count]), list(state.cal_max[: params.count])
+            spans = np.array(cal_max) - np.array(cal_min)
+            if np.min(spans) < limits.min_calibration_range_us:
+                bad = int(np.argmin(spans))
+                cause = calibration_cause(twin, params, sensor, limits.min_calibration_range_us)
+                judge.fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; likely "
+                           f"{cause}", 0.0, 0.0)
+        if not judge.done:
+            rng = sim.rng
+            sim = _place(model, data, twin, lap, seed)  # put back on the start line: MuJoCo's time 0
+            sim.rng = rng  # the noise stream carries on, as the C loop's does
+            mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
+            mcu.zero_time()
+            mcu.reset_stats()
+            telemetry.offset = 0.0
+            mcu.button(True)
+            _drive(mcu, data, sim, judge, telemetry, steps)
+        status = mcu.status()
+        overruns = int.from_bytes(mcu.peek("fw_overruns", 2), "little")
+        dropped = int.from_bytes(mcu.peek("uart_dropped", 2), "little") if "uart_dropped" in elf.symbols else 0
+    return judge.result(params.count, cal_min, cal_max, lap.values), _report(elf, params.dt_s, status, overruns, dropped,
+                                                                           telemetry)
+
+
+def _report(elf: fw.ElfInfo, dt_s: float, status, overruns: int, dropped: int, telemetry: "_Telemetry") -> McuReport:
+    period = round(dt_s * fw.F_CPU_HZ)
+    return McuReport(
+        mcu=fw.MCU, board=fw.BOARD, f_cpu_hz=fw.F_CPU_HZ, elf=elf.path, flash_bytes=elf.flash_bytes,
+        flash_total_bytes=fw.FLASH_BYTES, ram_bytes=elf.ram_bytes, ram_total_bytes=fw.RAM_BYTES, period_cycles=period,
+        busy_cycles_max=int(status.busy_max),
+        busy_cycles_mean=float(status.busy_sum / status.busy_ticks) if status.busy_ticks else 0.0,
+        headroom=1.0 - int(status.busy_max) / period, ticks=int(status.busy_ticks), overruns=overruns,
+        read_error_max_us=float(status.read_error_max_us),
+        read_error_mean_us=float(status.read_error_sum_us / status.read_errors) if status.read_errors else 0.0,
+        telemetry_lines=telemetry.lines, telemetry_bad_lines=telemetry.bad, telemetry_dropped_lines=dropped,
+        uart_bytes_lost=int(status.uart_lost),
+    )
+
+
+def _place(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: Variant, seed: int) -> core.Sim:
+    """The robot on the start line at time 0, with a fresh head the glue (not the C callback) owns."""
+    mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
+    sim = setup(data.userdata, model, twin, lap.params, lap.sensor, seed, lap.physics)
+    sim.magic = PIL_MAGIC
+    return sim
+
+
+class _Telemetry:
+    """The UART's bytes as lines: counted, checked against the wire format, handed on."""
+
+    def __init__(self, on_line: Callable[[float, str], None] | None):
+        self.on_line, self.pending, self.lines, self.bad, self.offset = on_line, b"", 0, 0, 0.0
+
+    def take(self, data: bytes, t: float) -> None:
+        self.pending += data
+        *lines, self.pending = self.pending.split(b"\n")
+        for raw in lines:
+            line = raw.decode("ascii", errors="replace") + "\n"
+            self.lines += 1
+            try:
+                decode(line)
+            except WireError:
+                self.bad += 1
+            if self.on_line:
+                self.on_line(t + self.offset, line)
+
+
+def _advance(mcu: Mcu, data: mujoco.MjData, telemetry: _Telemetry, steps: int) -> tuple[str, str] | None:
+    """One chunk in lockstep; (failure, detail) if the lap cannot go on (stalled, diverged, refused)."""
+    code, why = mcu.lockstep(steps)
+    core.flush_mujoco_log()
+    telemetry.take(mcu.uart(), float(data.time))
+    if code != RUNNING:
+        return (STALLED if code == 1 else REFUSED), why
+    if not np.isfinite(data.qpos).all():
+        return DIVERGED, "the physics produced a non-finite state"
+    return None
+
+
+def _calibrate(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int,
+               limits: LapLimits) -> None:
+    """Power-up to the end of the firmware's calibration turn (its mode leaves CALIBRATE)."""
+    telemetry.offset = 0.0
+    while True:
+        failure = _advance(mcu, data, telemetry, steps)
+        if failure:
+            judge.fail(*failure, float(data.time), 0.0)
+            return
+        sim.records_written = 0  # the turn's trace is not judged
+        mode = mcu.state().mode
+        if mode == IDLE:
+            telemetry.offset = -float(data.time)  # lap times count from the button press
+            return
+        if mode != CALIBRATE:
+            judge.fail(STALLED, f"the firmware left its calibration turn for mode {mode}, not idle", float(data.time), 0.0)
+            return
+        if data.time > limits.calibration_timeout_s + 1.0:
+            judge.fail(CALIBRATION, f"the firmware's calibration turn did not end in {limits.calibration_timeout_s:g} s",
+                       float(data.time), 0.0)
+            return
+
+
+def _drive(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int) -> None:
+    """The lap: button B held until the firmware runs, then chunks judged until the lap ends."""
+    consumed, pressed = 0, True
+    while not judge.done:
+        failure = _advance(mcu, data, telemetry, steps)
+        if pressed and mcu.state().mode == RUN:
+            mcu.button(False)
+            pressed = False
+        try:
+            judge.feed(core.records_since(data.userdata, sim, consumed))
+        except TwinError as e:
+            judge.fail(REFUSED, str(e), float(data.time), float(sim.energy_j))
+            return
+        consumed = sim.records_written
+        if failure:  # after the chunk's ticks: a lap completed before the firmware stalled is completed
+            judge.fail(*failure, float(data.time), float(sim.energy_j))
+            return
+        if pressed and data.time > 1.0:
+            judge.fail(STALLED, "the firmware did not start within 1 s of button B being pressed", float(data.time),
+                       float(sim.energy_j))
+            return
+

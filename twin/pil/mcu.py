@@ -1,0 +1,180 @@
+"""An emulated ATmega328P running a firmware ELF (simavr, through the C glue ``twin.pil._lfavr``).
+
+:class:`Mcu` loads a program and gives its RAM by symbol (``peek``/``poke``), its EEPROM, and, attached to a
+simulation, the lockstep with MuJoCo of ``twin/csrc/pil/avr_glue.c``. Without simavr the glue is not built, and
+opening an MCU says what to install.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import os
+from ctypes import c_char_p, c_double, c_int32, c_int64, c_uint32, c_uint64, c_void_p
+
+import mujoco
+
+from twin.core import native as core
+from twin.pil.firmware import F_CPU_HZ, MCU, ElfInfo
+from twin.errors import TwinError
+
+INSTALL_SIMAVR = ("processor in the loop needs simavr: apt-get install simavr libsimavr-dev, then pip install -e . "
+                  "again to build twin.pil._lfavr")
+RUNNING, STALLED, REFUSED = 0, 1, 2  # lf_avr_lockstep
+
+
+class McuStatus(ctypes.Structure):
+    """``lf_avr_status``: the MCU's figures so far."""
+
+    _fields_ = [("cycle", c_uint64), ("ticks", c_int64), ("busy_max", c_uint64), ("busy_sum", c_uint64),
+                ("busy_ticks", c_int64), ("uart_lost", c_int64), ("read_error_max_us", c_double),
+                ("read_error_sum_us", c_double), ("read_errors", c_int64)]
+
+
+_lib: ctypes.CDLL | None = None
+
+
+def glue() -> ctypes.CDLL:
+    """The glue library, loaded and checked once; TwinError with the install hint if it is missing."""
+    global _lib
+    if _lib is not None:
+        return _lib
+    here = os.path.dirname(os.path.abspath(__file__))
+    found = sorted(glob.glob(os.path.join(here, "_lfavr*.so")))
+    if not found:
+        raise TwinError(INSTALL_SIMAVR)
+    try:
+        lib = ctypes.CDLL(found[0])
+    except OSError as e:  # built, but libsimavr has gone since
+        raise TwinError(f"{INSTALL_SIMAVR} ({e})") from None
+    try:
+        core.check_library(lib)
+    except ImportError as e:  # built from older sources
+        raise TwinError(f"twin.pil._lfavr is out of date ({e}); rebuild it with pip install -e .") from None
+    lib.lf_set_ray.argtypes = [c_void_p]
+    lib.lf_set_ray(core.mujoco_function("mj_ray"))
+    p = ctypes.POINTER
+    lib.lf_avr_open.argtypes = [c_char_p, c_char_p, c_uint32, c_char_p, c_int32]
+    lib.lf_avr_open.restype = c_void_p
+    lib.lf_avr_close.argtypes = [c_void_p]
+    lib.lf_avr_symbol.argtypes = [c_void_p, c_char_p]
+    lib.lf_avr_symbol.restype = c_int32
+    lib.lf_avr_eeprom.argtypes = [c_void_p, c_char_p, c_uint32]
+    lib.lf_avr_eeprom.restype = c_int32
+    lib.lf_avr_peek.argtypes = [c_void_p, c_uint32, c_char_p, c_uint32]
+    lib.lf_avr_poke.argtypes = [c_void_p, c_uint32, c_char_p, c_uint32]
+    lib.lf_avr_peek.restype = lib.lf_avr_poke.restype = c_int32
+    lib.lf_avr_run_until_clear.argtypes = [c_void_p, c_uint32, c_uint64]
+    lib.lf_avr_run_until_clear.restype = c_int32
+    lib.lf_avr_run_cycles.argtypes = [c_void_p, c_uint64]
+    lib.lf_avr_run_cycles.restype = c_int32
+    lib.lf_avr_attach.argtypes = [c_void_p, c_void_p, c_void_p, c_void_p, c_double]
+    lib.lf_avr_zero_time.argtypes = lib.lf_avr_reset_stats.argtypes = [c_void_p]
+    lib.lf_avr_button.argtypes = [c_void_p, c_int32]
+    lib.lf_avr_state.argtypes = [c_void_p, p(core.FwState)]
+    lib.lf_avr_state.restype = c_int32
+    lib.lf_avr_state_size.restype = c_int32
+    lib.lf_avr_lockstep.argtypes = [c_void_p, c_void_p, c_void_p, c_int64]
+    lib.lf_avr_lockstep.restype = c_int32
+    lib.lf_avr_message.argtypes = [c_void_p]
+    lib.lf_avr_message.restype = c_char_p
+    lib.lf_avr_uart.argtypes = [c_void_p, c_char_p, c_int32]
+    lib.lf_avr_uart.restype = c_int32
+    lib.lf_avr_status_of.argtypes = [c_void_p, p(McuStatus)]
+    _lib = lib
+    return lib
+
+
+class Mcu:
+    """One emulated MCU running the program ``elf`` (checked by :func:`twin.pil.firmware.check_elf`)."""
+
+    def __init__(self, elf: ElfInfo, mcu: str = MCU, f_cpu_hz: int = F_CPU_HZ):
+        self.lib, self.elf, self.f_cpu_hz = glue(), elf, f_cpu_hz
+        err = ctypes.create_string_buffer(256)
+        self.handle = self.lib.lf_avr_open(elf.path.encode(), mcu.encode(), f_cpu_hz, err, len(err))
+        if not self.handle:
+            raise TwinError(f"{elf.path}: {err.value.decode(errors='replace')}")
+        self._attached: tuple = ()
+
+    def close(self) -> None:
+        if self.handle:
+            self.lib.lf_avr_close(self.handle)
+            self.handle = None
+
+    def __enter__(self) -> "Mcu":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def address(self, name: str) -> int:
+        at = self.lib.lf_avr_symbol(self.handle, name.encode())
+        if at < 0:
+            raise TwinError(f"{self.elf.path}: has no global named {name}")
+        return at
+
+    def peek(self, name_or_address: str | int, n: int) -> bytes:
+        at = self.address(name_or_address) if isinstance(name_or_address, str) else name_or_address
+        buf = ctypes.create_string_buffer(n)
+        if self.lib.lf_avr_peek(self.handle, at, buf, n):
+            raise TwinError(f"peek {n} bytes at 0x{at:x}: outside the MCU's RAM")
+        return buf.raw
+
+    def poke(self, name_or_address: str | int, data: bytes) -> None:
+        at = self.address(name_or_address) if isinstance(name_or_address, str) else name_or_address
+        if self.lib.lf_avr_poke(self.handle, at, data, len(data)):
+            raise TwinError(f"poke {len(data)} bytes at 0x{at:x}: outside the MCU's RAM")
+
+    def eeprom(self, image: bytes) -> None:
+        if self.lib.lf_avr_eeprom(self.handle, image, len(image)):
+            raise TwinError(f"the MCU's EEPROM cannot take {len(image)} bytes")
+
+    def run_until_clear(self, name: str, max_cycles: int) -> int:
+        """Run until the byte ``name`` is 0: 0 done, 1 out of cycles, 2 the MCU stopped."""
+        return self.lib.lf_avr_run_until_clear(self.handle, self.address(name), max_cycles)
+
+    def run_cycles(self, cycles: int) -> int:
+        """Run free (nothing attached) for ``cycles``: 0, or 2 if the MCU stopped."""
+        return self.lib.lf_avr_run_cycles(self.handle, cycles)
+
+    # --- in the loop
+    def attach(self, model: mujoco.MjModel, data: mujoco.MjData, sim: core.Sim, stall_s: float) -> None:
+        """Sensor reads from now on come from this simulation; the watchdog allows ``stall_s`` simulated seconds."""
+        self._attached = (model, data, sim)  # kept alive while the C holds their addresses
+        self.lib.lf_avr_attach(self.handle, model._address, data._address, ctypes.addressof(sim), stall_s)
+
+    def lockstep(self, nstep: int) -> tuple[int, str]:
+        code = self.lib.lf_avr_lockstep(self.handle, core.mujoco_function("mj_step1"), core.mujoco_function("mj_step2"),
+                                        nstep)
+        return code, (self.lib.lf_avr_message(self.handle) or b"").decode(errors="replace")
+
+    def zero_time(self) -> None:
+        self.lib.lf_avr_zero_time(self.handle)
+
+    def reset_stats(self) -> None:
+        self.lib.lf_avr_reset_stats(self.handle)
+
+    def button(self, pressed: bool) -> None:
+        self.lib.lf_avr_button(self.handle, int(pressed))
+
+    def state(self) -> core.FwState:
+        out = core.FwState()
+        if self.lib.lf_avr_state(self.handle, ctypes.byref(out)):
+            raise TwinError(f"{self.elf.path}: has no fw_state")
+        return out
+
+    def uart(self) -> bytes:
+        buf = ctypes.create_string_buffer(65536)
+        n = self.lib.lf_avr_uart(self.handle, buf, len(buf))  # before buf.raw is read
+        return buf.raw[:n]
+
+    def status(self) -> McuStatus:
+        out = McuStatus()
+        self.lib.lf_avr_status_of(self.handle, ctypes.byref(out))
+        return out
+
+
+def state_size() -> int:
+    """Bytes of the firmware's lf_state on the MCU as the glue reads it (checked against the ELF's symbol size)."""
+    return glue().lf_avr_state_size()
+

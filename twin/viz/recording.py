@@ -1,0 +1,171 @@
+"""rerun recordings of laps: the track, the robot's path, sensor readings and control signals over time.
+
+Whole series go in with ``send_columns`` (one call per signal, not one per tick), and a blueprint lays the
+views out, one unit per panel. Files are written to a temporary name and renamed when complete, so a crash
+leaves no half file; ``--view`` alone streams to the viewer and writes nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+from typing import Iterator, Sequence
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+from PIL import Image
+
+from mjcf.track import FloorTexture, Track
+from lf_common.files import atomic_path, check_output_file, rrd_is_ours
+from twin.viz import viewer
+from twin.errors import TwinError
+from twin.core.lap import LapResult
+
+APP_ID = "line-follower-twin"
+TIMELINE = "sim_time"
+MAP_PIXEL_M = 0.004  # the floor image in the recording: 4 mm pixels keep a default-track file ~0.2 MB
+
+
+def lap_blueprint(count: int) -> rrb.Blueprint:
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(name="track", origin="/track"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(name="line angle e [rad]", origin="/control/e"),
+                rrb.TimeSeriesView(name="speed v [m/s]", origin="/control/v"),
+                rrb.TimeSeriesView(name="turn rate ω [rad/s]", origin="/control/omega"),
+                rrb.TimeSeriesView(name="motor voltage [V]", contents=["/motors/left", "/motors/right"]),
+                rrb.TimeSeriesView(name="energy drawn [J]", origin="/energy"),
+                rrb.TimeSeriesView(name=f"calibrated readings 0..1000 ({count} sensors)", origin="/sensors/calibrated"),
+                rrb.TimeSeriesView(name="cross-track error [m]", origin="/lap/cross_track"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+class _Map:
+    """World metres → pixels of the downsampled floor image logged under /track."""
+
+    def __init__(self, texture: FloorTexture):
+        self.step = max(1, int(round(MAP_PIXEL_M / texture.metres_per_pixel)))
+        self.texture = texture
+        self.image = texture.grey[:: self.step, :: self.step]
+
+    def px(self, xy: np.ndarray) -> np.ndarray:
+        row, col = self.texture.pixel_of(xy)
+        return np.stack([col, row], axis=-1) / self.step
+
+
+def _series(rec: rr.RecordingStream, path: str, t: np.ndarray, values: np.ndarray) -> None:
+    rr.send_columns(path, indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=rr.Scalars.columns(scalars=values),
+                    recording=rec)
+
+
+def log_lap(rec: rr.RecordingStream, track: Track, texture: FloorTexture, result: LapResult, name: str = "robot") -> None:
+    """Log one lap (it must carry its trace) under /track/<name> and the time series."""
+    tr = result.trace
+    if tr is None:
+        raise TwinError("recording: the lap has no trace (run it with keep_traces=True)")
+    m = _Map(texture)
+    t = tr.time_s
+    path = m.px(tr.records[:, 1:3])
+    rr.log(f"track/{name}/path", rr.LineStrips2D([path], radii=0.6, colors=[[230, 60, 40]]), static=True, recording=rec)
+    rr.send_columns(f"track/{name}/position", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+                    columns=rr.Points2D.columns(positions=path).partition(np.ones(len(t), dtype=int)), recording=rec)
+    for col, entity in (("e_rad", "control/e"), ("v_mps", "control/v"), ("omega_radps", "control/omega"),
+                        ("u_left_v", "motors/left"), ("u_right_v", "motors/right"), ("energy_j", "energy/motors")):
+        _series(rec, entity, t, tr.column(col))
+    _series(rec, "lap/cross_track", t, tr.cross_track_m)
+    _series(rec, "lap/progress", t, tr.progress_m)
+    for i in range(tr.count):
+        _series(rec, f"sensors/calibrated/{i}", t, tr.calibrated[:, i])
+        _series(rec, f"sensors/raw/{i}", t, tr.raw_us[:, i])
+
+
+def log_track(rec: rr.RecordingStream, track: Track, texture: FloorTexture) -> None:
+    m = _Map(texture)
+    rr.log("track/floor", rr.Image(m.image), static=True, recording=rec)
+    centre = m.px(np.vstack([track.centre, track.centre[:1]]))
+    rr.log("track/centre_line", rr.LineStrips2D([centre], radii=0.3, colors=[[40, 120, 230]]), static=True, recording=rec)
+    start = m.px(track.centre[:1])
+    rr.log("track/start", rr.Points2D(start, radii=3.0, colors=[[40, 200, 80]], labels=["start"]), static=True, recording=rec)
+
+
+def check_targets(save: str | None, view: bool) -> None:
+    """Before any work: the recording can be written where asked, and a viewer exists if asked. Without a
+    display, ``view`` alone is refused now; with ``save`` the work is done and saved first (see :func:`recording`)."""
+    if save:
+        check_output_file(save, rrd_is_ours, "recording")
+    if view:
+        viewer.viewer_executable()
+        if not save:
+            viewer.require_display()
+
+
+@contextlib.contextmanager
+def recording(save: str | None, view: bool, blueprint: rrb.Blueprint, app_id: str = APP_ID) -> Iterator[rr.RecordingStream | None]:
+    """A recording streamed to a viewer (``view``) and/or saved to ``save``; None when neither is asked.
+
+    The file is written under a temporary name and renamed into place when the ``with`` block completes, and
+    replaces only a recording this program wrote; a failure leaves no file. With ``view`` alone nothing is
+    written to disk: the data streams to the viewer. With ``view`` but no display, the recording is saved and
+    then the missing display is reported (TwinError): the work is kept, the window could not open.
+    """
+    if not save and not view:
+        yield None
+        return
+    check_targets(save, view)
+    show = view and viewer.has_display()
+    with contextlib.ExitStack() as stack:
+        sinks = []
+        if save:
+            sinks.append(rr.FileSink(stack.enter_context(atomic_path(save, rrd_is_ours, "recording"))))
+        if show:
+            sinks.append(rr.GrpcSink(viewer.spawn_for_stream()))
+        rec = rr.RecordingStream(app_id)
+        rec.set_sinks(*sinks, default_blueprint=blueprint)
+        try:
+            yield rec
+        finally:
+            rec.flush()
+            rec.disconnect()
+    if view and not show:
+        viewer.require_display(os.path.abspath(save))  # saved above; now say why no window opened
+
+
+@contextlib.contextmanager
+def recording_file(out_path: str, blueprint: rrb.Blueprint) -> Iterator[rr.RecordingStream]:
+    """A recording saved to ``out_path`` only (see :func:`recording`)."""
+    with recording(out_path, False, blueprint) as rec:
+        yield rec
+
+
+def save_laps(save: str | None, view: bool, track: Track, texture: FloorTexture, results: Sequence[LapResult],
+              names: Sequence[str]) -> str | None:
+    """Laps to a saved recording and/or the viewer (see :func:`recording`); returns the saved path, if any."""
+    if not save and not view:
+        return None
+    count = results[0].trace.count if results and results[0].trace else 8
+    with recording(save, view, lap_blueprint(count)) as rec:
+        log_track(rec, track, texture)
+        for r, n in zip(results, names):
+            log_lap(rec, track, texture, r, n)
+    return os.path.abspath(save) if save else None
+
+
+def save_charts(save: str | None, view: bool, charts: dict[str, str]) -> str | None:
+    """PNG charts as images, one panel each ({panel name: PNG path}); returns the saved path, if any."""
+    if not save and not view:
+        return None
+    entities = {name: "charts/" + re.sub(r"[^A-Za-z0-9_.-]+", "_", name) for name in charts}
+    blueprint = rrb.Blueprint(rrb.Horizontal(*(rrb.Spatial2DView(name=name, origin="/" + e) for name, e in entities.items())),
+                              collapse_panels=True)
+    with recording(save, view, blueprint) as rec:
+        for name, path in charts.items():
+            with Image.open(path) as img:
+                rr.log(entities[name], rr.Image(np.asarray(img.convert("RGB"))), static=True, recording=rec)
+    return os.path.abspath(save) if save else None

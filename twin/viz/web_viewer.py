@@ -1,0 +1,98 @@
+"""A recording in rerun's web viewer, in headless Chromium: served by the installed ``rerun``, screenshotted.
+
+Used by the web-viewer test and by ``docs/make_figures.py``. The viewer draws with WebGL; headless Chromium has
+no GPU here, so it renders with SwiftShader (ANGLE's software Vulkan), which must be allowed explicitly.
+Needs Debian's ``chromium`` and Playwright's Python package (the ``test`` extra), pointed at that browser:
+Playwright's own browser download is not used.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import time
+from typing import Iterator
+
+from twin.errors import TwinError
+from twin.viz.viewer import check_recording, viewer_executable
+
+CHROMIUM_ARGS = ("--no-sandbox", "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                 "--ignore-gpu-blocklist")
+SERVER_START_S = 20.0  # [s] for `rerun --serve-web` to answer on its port
+
+
+def chromium_executable() -> str | None:
+    """The system Chromium (Debian: ``chromium``), or None."""
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextlib.contextmanager
+def served(recording: str) -> Iterator[str]:
+    """Serve ``recording`` with ``rerun --serve-web``; yields the URL that opens it in the web viewer."""
+    check_recording(recording)
+    web, grpc = free_port(), free_port()
+    # a session of its own: the venv's `rerun` is a Python launcher that runs the binary as its child, and killing
+    # the launcher alone would leave the server running
+    server = subprocess.Popen([viewer_executable(), "--serve-web", recording, "--web-viewer-port", str(web),
+                               "--port", str(grpc)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)
+    try:
+        deadline = time.monotonic() + SERVER_START_S
+        while True:  # up when its web port answers
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", web)) == 0:
+                    break
+            if server.poll() is not None or time.monotonic() > deadline:
+                raise TwinError(f"{recording}: rerun --serve-web did not start within {SERVER_START_S:g} s")
+            time.sleep(0.2)
+        yield f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}%2Fproxy"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(server.pid, signal.SIGKILL)
+        server.wait()
+
+
+@contextlib.contextmanager
+def headless_chromium() -> Iterator[object]:
+    """A Playwright ``Browser`` on the system Chromium, with software WebGL."""
+    executable = chromium_executable()
+    if not executable:
+        raise TwinError("web viewer: no chromium on PATH (Debian: apt-get install chromium)")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        raise TwinError("web viewer: the playwright package is missing (pip install -e '.[test]')") from None
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=executable, args=list(CHROMIUM_ARGS))
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+def screenshot_when_settled(page, png: str, min_wait_s: float = 6.0, timeout_s: float = 60.0,
+                            every_s: float = 2.0) -> bool:
+    """Screenshot ``page`` to ``png`` until two consecutive shots are identical (the viewer has loaded the
+    recording and stopped animating), at least ``min_wait_s`` after the call. Returns whether it settled within
+    ``timeout_s`` (the last shot is kept either way)."""
+    start, last = time.monotonic(), None
+    while True:
+        time.sleep(every_s)
+        digest = hashlib.sha256(page.screenshot(path=png)).digest()
+        now = time.monotonic() - start
+        if digest == last and now >= min_wait_s:
+            return True
+        if now >= timeout_s:
+            return False
+        last = digest
