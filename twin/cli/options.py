@@ -11,6 +11,7 @@ import argparse
 import logging
 import math
 import os
+import re
 import sys
 from typing import Sequence
 
@@ -36,11 +37,20 @@ class Formatter(argparse.RawDescriptionHelpFormatter):
         return text
 
 
+def plain_text(text: str) -> str:
+    """reST inline markup as a terminal should show it: ``:mod:`x```, ``:func:`~a.x``` → x; double back-quotes
+    and ``**`` dropped."""
+    text = re.sub(r":\w+:`~?([^`]+)`", r"\1", text)
+    return text.replace("``", "").replace("**", "")
+
+
 class Parser(argparse.ArgumentParser):
     """argparse with one-line usage errors (``error: …``, exit 2) and defaults shown in ``--help``."""
 
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("formatter_class", Formatter)
+        if kwargs.get("description"):  # module docstrings serve as descriptions: a terminal shows no reST
+            kwargs["description"] = plain_text(kwargs["description"])
         super().__init__(*args, **kwargs)
 
     def error(self, message: str):

@@ -96,13 +96,18 @@ def run_convert(args: argparse.Namespace) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m mjcf``."""
+def parser() -> o.Parser:
+    """``python -m mjcf``'s parser: ``generate`` and ``convert``."""
     p = o.Parser(prog="python -m mjcf", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_generate(sub)
     add_convert(sub)
-    args = p.parse_or_exit_code(argv)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m mjcf``."""
+    args = parser().parse_or_exit_code(argv)
     if isinstance(args, int):
         return args
     return run_command(args.run, args)

@@ -26,7 +26,7 @@ import numpy as np
 
 from mjcf.world import AXLE_SITE, LINE_SENSOR, MOTORS, START_KEY, PhysicsOptions
 from twin.core import native as core
-from twin.core.calibration_cause import calibration_cause
+from twin.core.calibration import range_too_small, turn_too_long
 from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
@@ -208,11 +208,8 @@ def start_phase(sim: core.Sim, mode: int) -> None:
 def _refuse_long_turns(fleet: Fleet, limits: LapLimits) -> None:
     """End, before any simulation, the laps whose turn would take longer than the limit (no wall time spent)."""
     for lap, judge in zip(fleet.laps, fleet.judges):
-        seconds = calibration_ticks(lap.params) * lap.params.dt_s
-        if seconds > limits.calibration_timeout_s:
-            judge.fail(CALIBRATION, f"the calibration turn would take {seconds:.6g} s (limit {limits.calibration_timeout_s:g} s "
-                       "simulated): raise control.cal_duty or control.full_speed, or lower control.cal_sweep or "
-                       "control.cal_sweeps", 0.0, 0.0)
+        if why := turn_too_long(lap.params, limits):
+            judge.fail(CALIBRATION, why, 0.0, 0.0)
 
 
 def _calibrate(fleet: Fleet, keys: list[tuple], turns: dict) -> dict[tuple, tuple]:
@@ -257,12 +254,8 @@ def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limi
             sim.fw.cal_min[j], sim.fw.cal_max[j] = a, b
         sim.rng = rng
         cal.append((list(lo), list(hi)))
-        spans = np.array(hi) - np.array(lo)
-        if np.min(spans) < limits.min_calibration_range_us:
-            bad = int(np.argmin(spans))
-            cause = calibration_cause(fleet.twin, lap.params, lap.sensor, limits.min_calibration_range_us)
-            judge.fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; likely "
-                       f"{cause}", 0.0, 0.0)
+        if why := range_too_small(fleet.twin, lap.params, lap.sensor, lo, hi, limits):
+            judge.fail(CALIBRATION, why, 0.0, 0.0)
         start_phase(sim, RUN)
     return cal
 

@@ -20,15 +20,15 @@ import numpy as np
 from mjcf.world import START_KEY
 from twin.pil import firmware as fw
 from twin.core import native as core
-from twin.core.calibration_cause import calibration_cause
+from twin.core.calibration import range_too_small, turn_too_long
 from twin.core.closed_loop import check_seed, setup
-from twin.model.control import CALIBRATE, IDLE, RUN, calibration_ticks
+from twin.model.control import CALIBRATE, IDLE, RUN
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
 from twin.errors import TwinError
 from twin.pil.mcu import RUNNING, Mcu, state_size
 from twin.core.variant import Variant
-from twin.telemetry.wire import WireError, decode
+from twin.telemetry.wire import LineSplitter, WireError, decode
 
 STALLED = "firmware_stalled"
 PIL_MAGIC = core.MAGIC + 1.0  # the C callback acts on core.MAGIC only: this head is the glue's
@@ -104,21 +104,15 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
         mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
         steps = max(1, round(CHUNK_S / model.opt.timestep))
         cal_min, cal_max = [], []
-        turn_s = calibration_ticks(params) * params.dt_s
-        if turn_s > limits.calibration_timeout_s:
-            judge.fail(CALIBRATION, f"the calibration turn would take {turn_s:.6g} s (limit "
-                       f"{limits.calibration_timeout_s:g} s simulated)", 0.0, 0.0)
+        if why := turn_too_long(params, limits):
+            judge.fail(CALIBRATION, why, 0.0, 0.0)
         else:
             _calibrate(mcu, data, sim, judge, telemetry, steps, limits)
         if not judge.done:
             state = mcu.state()
             cal_min, cal_max = list(state.cal_min[: params.count]), list(state.cal_max[: params.count])
-            spans = np.array(cal_max) - np.array(cal_min)
-            if np.min(spans) < limits.min_calibration_range_us:
-                bad = int(np.argmin(spans))
-                cause = calibration_cause(twin, params, sensor, limits.min_calibration_range_us)
-                judge.fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; likely "
-                           f"{cause}", 0.0, 0.0)
+            if why := range_too_small(twin, params, sensor, cal_min, cal_max, limits):
+                judge.fail(CALIBRATION, why, 0.0, 0.0)
         if not judge.done:
             rng = sim.rng
             sim = _place(model, data, twin, lap, seed)  # put back on the start line: MuJoCo's time 0
@@ -160,17 +154,19 @@ def _place(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: V
 
 
 class _Telemetry:
-    """The UART's bytes as lines: counted, checked against the wire format, handed on."""
+    """The UART's bytes as lines (cut by the wire's own :class:`LineSplitter`): counted, checked against the wire
+    format, handed on. A line longer than any wire line is counted as bad and not handed on."""
 
     def __init__(self, on_line: Callable[[float, str], None] | None):
-        self.on_line, self.pending, self.lines, self.bad, self.offset = on_line, b"", 0, 0, 0.0
+        self.on_line, self.splitter, self.lines, self.bad, self.offset = on_line, LineSplitter(), 0, 0, 0.0
 
     def take(self, data: bytes, t: float) -> None:
-        self.pending += data
-        *lines, self.pending = self.pending.split(b"\n")
-        for raw in lines:
-            line = raw.decode("ascii", errors="replace") + "\n"
+        for raw in self.splitter.feed(data):
             self.lines += 1
+            if raw is None:
+                self.bad += 1
+                continue
+            line = raw.decode("ascii", errors="replace")
             try:
                 decode(line)
             except WireError:

@@ -1,6 +1,7 @@
-"""Why a calibration turn left a sensor without range: the likely cause, named with its fix.
+"""The calibration turn judged, for the C loop and the firmware binary alike: a turn too long to simulate, or one
+that left a sensor without range, with the likely cause named with its fix.
 
-Checked in order, each from the twin's own models: the array too high for the sensor model to tell the line
+Causes are checked in order, each from the twin's own models: the array too high for the sensor model to tell the line
 from the ground (:mod:`line_sensor.working_range`); a turn too short for the sensor to reach the line (turning
 in place by θ about the axle brings a sensor at lateral offset y and distance S over the line's centre at
 θ = atan(|y| / S), and over its far edge at atan((|y| + w/2) / S)); else a turn that fell short of its plan,
@@ -13,8 +14,35 @@ from __future__ import annotations
 
 import math
 
+from typing import Sequence
+
+import numpy as np
+
 from line_sensor.working_range import span_us
 from mjcf.track import GROUND_GREY, LINE_GREY
+from twin.model.control import calibration_ticks
+
+
+def turn_too_long(params, limits) -> str | None:
+    """Why a turn planned by ``params`` (``ControlParams``) is not simulated at all, or None: it would take longer
+    than ``limits.calibration_timeout_s`` (``LapLimits``) of simulated time."""
+    seconds = calibration_ticks(params) * params.dt_s
+    if seconds <= limits.calibration_timeout_s:
+        return None
+    return (f"the calibration turn would take {seconds:.6g} s (limit {limits.calibration_timeout_s:g} s simulated): "
+            "raise control.cal_duty or control.full_speed, or lower control.cal_sweep or control.cal_sweeps")
+
+
+def range_too_small(twin, params, sensor, cal_min_us: Sequence[float], cal_max_us: Sequence[float],
+                    limits) -> str | None:
+    """Why the turn's calibration (per-sensor min and max [µs]) cannot be used, or None: a sensor spans less than
+    ``limits.min_calibration_range_us``; named with its likely cause."""
+    spans = np.asarray(cal_max_us) - np.asarray(cal_min_us)
+    if np.min(spans) >= limits.min_calibration_range_us:
+        return None
+    bad = int(np.argmin(spans))
+    return (f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; likely "
+            f"{calibration_cause(twin, params, sensor, limits.min_calibration_range_us)}")
 
 
 def calibration_cause(twin, params, sensor, min_span_us: float) -> str:
