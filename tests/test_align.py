@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from tuner.align.lap_time import align_lap_time
+from tuner.align.lap_time import align_lap_time, reachable_intervals
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.run import main
@@ -40,6 +40,35 @@ def test_unexplained_lap_time_is_reported_with_the_reachable_range():
     # scan found is faster than the measurement, which is why nothing explains it
     assert t.track.length_m / t.space.get("control.v_max") < lo <= hi < 15.7
     assert "explains" in r.message and "slower" in r.message
+
+
+def test_a_robot_in_the_steep_band_is_explained_with_the_default_range():
+    """Issue 22.1: default gains complete laps down to μ ≈ 0.2, where the tyres slip in the bends and the lap time
+    rises steeply; a robot measured there was explained by nothing when the default range began at 0.3."""
+    t = DigitalTwin()
+    measured = run_laps(t, [{"motion.mu": 0.21}], seed=0)[0]
+    assert measured.completed  # the premise: the twin's own lap at μ 0.21 completes
+    r = align_lap_time(t, measured.lap_time_s)
+    assert r.explained and r.bounds[0] <= 0.05
+    assert r.value == pytest.approx(0.21, rel=0.03)  # the hidden value
+    assert any(lo <= measured.lap_time_s <= hi for lo, hi in r.reachable_intervals_s)
+
+
+def test_a_measurement_outside_the_range_names_the_flag_that_widens_it():
+    t = DigitalTwin()
+    r = align_lap_time(t, 13.35, bounds=(0.5, 2.0))  # above 0.5 the default gains never slip: 13.169 s flat
+    assert not r.explained and "--bounds motion.mu=LO,HI" in r.message and "[0.5, 2]" in r.message
+
+
+def test_reachable_lap_times_are_intervals_split_by_failures_and_steps():
+    # a failed lap between two stretches of completed laps: two intervals, even where their lap times overlap
+    assert reachable_intervals([(0.1, 10.0), (0.2, 10.5), (0.3, None), (0.4, 12.0), (0.5, 12.2)]) == [
+        (10.0, 10.5), (12.0, 12.2)]
+    assert reachable_intervals([(0.1, 10.0), (0.2, 11.0), (0.3, None), (0.4, 10.5)]) == [(10.0, 11.0)]
+    # a step that refinement narrowed to 1e-4 of the value without closing: nothing between is reachable
+    assert reachable_intervals([(1.0, 10.0), (1.00001, 12.0), (2.0, 12.5)]) == [(10.0, 10.0), (12.0, 12.5)]
+    # the same gap across a wide stretch of values is a slope: continuous, one interval
+    assert reachable_intervals([(1.0, 10.0), (1.5, 12.0), (2.0, 12.5)]) == [(10.0, 12.5)]
 
 
 def test_flat_lap_time_is_not_identifiable(fast_twin):

@@ -8,14 +8,21 @@ Gradient descent on (t_sim(p) − t_measured)², as in the paper, safeguarded fo
    range, instead of returning the nearest bound as if it were an answer.
 2. **Refine** (one batch per round, at most ``REFINE_ROUNDS`` rounds and ``REFINE_LAPS`` laps): t(p) can be steep
    and narrow, just above the grip limit, where eight scan points miss it. A midpoint is added between
-   neighbours where one lap fails and the other completes, and between neighbours whose lap times differ by
+   neighbours where one lap fails and the other completes, between neighbours whose lap times differ by
    more than the measurement's tolerance while the measurement lies within their reach (between them, or
-   within one such difference of them).
+   within one such difference of them), and between neighbours whose lap times differ by more than ``JUMP``
+   (a step in t(p) or a steep stretch: refined until it is known which). The lap times the parameter can give
+   are reported as intervals (:func:`reachable_intervals`): a failing lap between two values, or a step that
+   refinement narrowed to ``FLOOR`` of the value without closing, separates two intervals.
 3. **Brackets**: every pair of neighbouring scan values whose lap times straddle the measurement.
 4. **Descend** inside each bracket. Each iteration is one batch of three laps (p and p(1 ± h)) for the residual
    r = t − t_m and its slope; the step is the Gauss–Newton step on r² (gradient descent with γ = 1/(2 r'²)).
    Where t(p) is flat (tyres that never slip give no gradient) or the step leaves the bracket, bisect
    instead; every lap narrows the bracket by the sign of its residual. Stops at |r| ≤ ``TOLERANCE``·t_m.
+
+The default search range (:func:`default_range`) is the parameter's documented physical range where the model
+space declares one (tyre friction: 0.05, rubber on dusty paper or vinyl, to 2.0, soft rubber on a grippy mat),
+else a factor of ``RELATIVE_RANGE`` either side of the current value; ``bounds`` (``--bounds``) overrides it.
 
 Every lap run on the way is kept. Around each solution, the values whose laps land within ``TOLERANCE`` of the
 measurement give a range the measurement is consistent with; disjoint ranges are all reported, and the
@@ -39,8 +46,12 @@ from tuner.search.space import TunerError
 SCAN_POINTS = 8
 REFINE_ROUNDS = 5  # midpoint rounds after the scan, one batch each
 REFINE_LAPS = 40  # at most this many refinement laps in all
-DEFAULT_RANGES = {"motion.mu": (0.3, 2.0)}  # below ~0.3 a line follower cannot hold the track at any speed
+# parameters whose model-space range is their documented physical range: searched over all of it by default
+# (friction coefficients: a line follower with soft enough gains holds the track down to where its laps fail)
+PHYSICAL_RANGE = ("motion.mu", "motion.floor_mu")
 RELATIVE_RANGE = 3.0  # other parameters: from a third to three times their current value
+JUMP = 0.01  # neighbouring lap times further apart than this fraction are refined, to tell a step from a slope
+FLOOR = 1e-4  # values closer than this fraction are as fine as a scan goes
 REL_STEP = 0.01  # finite-difference step, relative to the value
 TOLERANCE = 0.001  # aim for 0.1 %; success is within 0.5 % (ACCEPT)
 ACCEPT = 0.005
@@ -75,12 +86,14 @@ class LapTimeAlignment:
     explained: bool  # within ACCEPT of the measurement
     iterations: int
     laps: int
-    reachable_s: tuple[float, float] | None  # lap times the scan found possible, fastest first
+    reachable_s: tuple[float, float] | None  # fastest and slowest lap the scan found (the hull of the intervals)
     consistent: tuple[float, float] | None  # the chosen solution's consistent range
     identifiable: bool  # the chosen solution's range is narrow and it is the only one
     message: str
     trace: tuple[AlignPoint, ...]
     solutions: tuple[Solution, ...] = ()  # every disjoint range that explains the measurement
+    reachable_intervals_s: tuple[tuple[float, float], ...] = ()  # the lap times it can give, as disjoint intervals
+    bounds: tuple[float, float] | None = None  # the range searched
 
     def summary(self) -> dict:
         d = dataclasses.asdict(self)
@@ -104,19 +117,60 @@ def _midpoint(a: float, b: float) -> float:
     return math.sqrt(a * b) if a > 0 else 0.5 * (a + b)
 
 
+def default_range(twin: DigitalTwin, address: str) -> tuple[float, float]:
+    """The range searched when none is given: the model space's range of a parameter in ``PHYSICAL_RANGE``, else a
+    factor of ``RELATIVE_RANGE`` either side of the current value, inside the model space's range."""
+    p = twin.space.parameter(address)
+    v = twin.space.get(address)
+    if address in PHYSICAL_RANGE or v <= 0:
+        return (p.lower, p.upper)
+    return (max(p.lower, v / RELATIVE_RANGE), min(p.upper, v * RELATIVE_RANGE))
+
+
+def _resolved(a: float, b: float) -> bool:
+    return b - a <= FLOOR * max(abs(a), abs(b), 1e-9)
+
+
 def _refine(points: list[tuple[float, float | None]], m: float, tol: float) -> list[float]:
-    """Where the scan may have stepped over a crossing: midpoints of the intervals to look into."""
+    """Where the scan may have stepped over a crossing or a step: midpoints of the intervals to look into."""
     out = []
     for (a, ta), (b, tb) in zip(points, points[1:]):
-        if b - a <= 1e-4 * max(abs(a), abs(b), 1e-9):
+        if _resolved(a, b):
             continue  # as fine as it is worth going
         if (ta is None) != (tb is None):
             out.append(_midpoint(a, b))
         elif ta is not None and abs(ta - tb) > tol * m:
             reach = abs(ta - tb)
-            if min(ta, tb) - reach <= m <= max(ta, tb) + reach:
+            if min(ta, tb) - reach <= m <= max(ta, tb) + reach or abs(ta - tb) > JUMP * min(ta, tb):
                 out.append(_midpoint(a, b))
     return out
+
+
+def reachable_intervals(points: list[tuple[float, float | None]]) -> list[tuple[float, float]]:
+    """The lap times a scan shows the parameter can give, as disjoint intervals, fastest first. ``points``:
+    (value, lap time or None for a failed lap). Neighbouring completed values are joined (t(p) taken as continuous
+    between them) unless a failed lap lies between them, or their lap times differ by more than ``JUMP`` although
+    the values are ``FLOOR`` apart (a step)."""
+    groups: list[list[float]] = []
+    last: tuple[float, float | None] | None = None
+    for v, t in sorted(points):
+        if t is None:
+            last = (v, None)
+            continue
+        step = last is not None and last[1] is not None and _resolved(last[0], v) and abs(t - last[1]) > JUMP * min(t, last[1])
+        if last is None or last[1] is None or step:
+            groups.append([t])
+        else:
+            groups[-1].append(t)
+        last = (v, t)
+    spans = sorted((min(g), max(g)) for g in groups)
+    merged: list[tuple[float, float]] = []
+    for lo, hi in spans:  # the same lap times reached from two ranges of values are one interval
+        if merged and lo <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], hi))
+        else:
+            merged.append((lo, hi))
+    return merged
 
 
 def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0) -> tuple[float, float, int]:
@@ -193,11 +247,8 @@ def align_lap_time(
     if p.integer:
         raise TunerError(f"{address}: a whole-number parameter cannot be aligned to a lap time")
     twin.checked_values({address: twin.space.get(address)})  # a cad.* address of a URDF robot: refused here
-    if bounds is None:  # a range of its own, else a factor of RELATIVE_RANGE either side of the current value
-        v = twin.space.get(address)
-        bounds = DEFAULT_RANGES.get(address) or (
-            (max(p.lower, v / RELATIVE_RANGE), min(p.upper, v * RELATIVE_RANGE)) if v > 0 else (p.lower, p.upper))
-    lo, hi = bounds
+    given = bounds is not None
+    lo, hi = bounds if given else default_range(twin, address)
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         raise TunerError(f"{address}: bounds [{lo:g}, {hi:g}] are inverted, empty or not finite")
     p.check(f"{address} lower bound", lo)
@@ -219,19 +270,23 @@ def align_lap_time(
         points = sorted(points + [(float(v), t) for v, t in zip(values, times)])
         values = _refine(points, m, TOLERANCE)
     done = [(v, t) for v, t in points if t is not None]
+    widen = (f"search another range with --bounds {address}=LO,HI" if given else
+             f"the default range is {address}'s {'documented physical' if address in PHYSICAL_RANGE else 'nearby'} "
+             f"range: search another with --bounds {address}=LO,HI")
     if not done:
-        return _result(address, [], m, 0, trace, None, current,
-                       f"no lap completes for {address} in [{lo:g}, {hi:g}] with these gains")
-    reachable = (min(t for _, t in done), max(t for _, t in done))
+        return _result(address, [], m, 0, trace, (), current, (lo, hi),
+                       f"no lap completes for {address} in [{lo:g}, {hi:g}] with these gains; {widen}")
+    intervals = reachable_intervals(points)
     # 3. brackets: neighbouring completed values on either side of the measurement, and exact hits
     found = [(v, t) for v, t in done if abs(t - m) <= TOLERANCE * m]
     brackets = [(a, b) for a, b in zip(done, done[1:]) if (a[1] - m) * (b[1] - m) < 0]
     if not brackets and not found:
-        where = "faster" if m < reachable[0] else "slower" if m > reachable[1] else "between the values the scan found"
+        where = ("faster" if m < intervals[0][0] else "slower" if m > intervals[-1][1]
+                 else "between the intervals it can give")
         return _result(
-            address, [], m, 0, trace, reachable, current,
-            f"no {address} in [{lo:g}, {hi:g}] explains {m:g} s: the simulated lap takes {reachable[0]:.3f}–"
-            f"{reachable[1]:.3f} s there (the measurement is {where}); check the gains, the track or another parameter")
+            address, [], m, 0, trace, intervals, current, (lo, hi),
+            f"no {address} in [{lo:g}, {hi:g}] explains {m:g} s: the simulated lap takes {_spans(intervals)} there "
+            f"(the measurement is {where}); {widen}, or check the gains, the track or another parameter")
     # 4. safeguarded Gauss–Newton inside each bracket
     iterations = 0
     for (a, ta), (b, tb) in brackets:
@@ -240,21 +295,27 @@ def align_lap_time(
         value, lap, k = _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, iterations)
         iterations += k
         found.append((value, lap))
-    return _result(address, found, m, iterations, trace, reachable, current, None)
+    return _result(address, found, m, iterations, trace, intervals, current, (lo, hi), None)
+
+
+def _spans(intervals: list[tuple[float, float]]) -> str:
+    return " or ".join(f"{a:.3f}–{b:.3f} s" for a, b in intervals)
 
 
 def _result(address: str, found: list[tuple[float, float]], m: float, iterations: int, trace: list[AlignPoint],
-            reachable, current: float, message: str | None) -> LapTimeAlignment:
+            intervals, current: float, bounds: tuple[float, float], message: str | None) -> LapTimeAlignment:
+    intervals = tuple(tuple(x) for x in intervals)
+    reachable = (intervals[0][0], intervals[-1][1]) if intervals else None
+    extra = {"reachable_intervals_s": intervals, "bounds": bounds}
     solutions = _solutions(found, trace, m)
     if not solutions:
         if found:  # brackets were searched but no lap got within ACCEPT: report the closest
             value, lap = min(found, key=lambda vt: abs(vt[1] - m))
             message = message or f"closest {address} = {value:.5g} gives {lap:.3f} s, {100 * (lap - m) / m:+.2f} % off"
             return LapTimeAlignment(address, value, lap, m, False, iterations, len(trace), reachable, None, False,
-                                    message, tuple(trace))
+                                    message, tuple(trace), **extra)
         return LapTimeAlignment(address, None, None, m, False, iterations, len(trace), reachable, None, False,
-                                message or f"no {address} explains {m:g} s", tuple(trace))
-
+                                message or f"no {address} explains {m:g} s", tuple(trace), **extra)
     def distance(x: Solution) -> float:  # the robot changed least: by ratio for a positive parameter
         return abs(math.log(x.value / current)) if x.value > 0 and current > 0 else abs(x.value - current)
 
@@ -271,4 +332,4 @@ def _result(address: str, found: list[tuple[float, float]], m: float, iterations
                     "a lap time alone")
     return LapTimeAlignment(address, best.value, best.lap_time_s, m, True, iterations, len(trace), reachable,
                             best.consistent, best.identifiable and len(solutions) == 1, message, tuple(trace),
-                            tuple(solutions))
+                            tuple(solutions), **extra)

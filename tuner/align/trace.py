@@ -42,7 +42,7 @@ from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapResult
 from twin.model.space import ChangeCost
 from twin.telemetry.jsonl import Telemetry
-from tuner.align.lap_time import DEFAULT_RANGES, align_lap_time
+from tuner.align.lap_time import PHYSICAL_RANGE, align_lap_time
 from tuner.search.space import TunerError
 
 GRID = 5  # grid points per parameter (7 for one or two parameters: GRID_SMALL)
@@ -155,7 +155,8 @@ def align_telemetry(twin: DigitalTwin, tel: Telemetry, addresses: Sequence[str],
         v = twin.space.get(a)
         if v <= 0:
             raise TunerError(f"{a}: trace alignment searches positive parameters (ratios to the current value)")
-        b = (bounds or {}).get(a) or DEFAULT_RANGES.get(a) or (max(p.lower, v / TRACE_RANGE), min(p.upper, v * TRACE_RANGE))
+        b = (bounds or {}).get(a) or ((p.lower, p.upper) if a in PHYSICAL_RANGE else
+                                      (max(p.lower, v / TRACE_RANGE), min(p.upper, v * TRACE_RANGE)))
         if not (math.isfinite(b[0]) and math.isfinite(b[1]) and 0 < b[0] < b[1]):
             raise TunerError(f"{a}: bounds [{b[0]:g}, {b[1]:g}] are inverted, empty or not positive")
         p.check(f"{a} lower bound", b[0])

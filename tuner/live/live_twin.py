@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 @dataclasses.dataclass(frozen=True)
 class LiveOptions:
     address: str = "motion.mu"  # what re-alignment adjusts
-    bounds: tuple[float, float] | None = (0.15, 2.0)
+    bounds: tuple[float, float] | None = None  # None: the aligner's default range for the address
     threshold: float = 0.005  # relative lap-time discrepancy that counts as disagreeing
     k_laps: int = 2  # laps in a row above the threshold before re-aligning
     seed: int = 0

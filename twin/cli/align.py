@@ -69,8 +69,9 @@ def _lap_time(args: argparse.Namespace) -> int:
     summary["recording"] = save_alignment(args.save, args.view, r, twin.space.parameter(address).unit)
     out.document(summary)
     out.say(r.message)
-    if r.reachable_s:
-        out.say(f"lap times {r.parameter} can give with these gains: {r.reachable_s[0]:.3f}–{r.reachable_s[1]:.3f} s")
+    if r.reachable_intervals_s:
+        spans = " or ".join(f"{a:.3f}–{b:.3f} s" for a, b in r.reachable_intervals_s)
+        out.say(f"lap times {r.parameter} in [{r.bounds[0]:g}, {r.bounds[1]:g}] can give with these gains: {spans}")
     out.say(f"{r.iterations} iterations, {r.laps} laps")
     for what in ("out", "recording"):
         if summary[what]:

@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         raise TwinError("live: re-aligns one parameter (--param) from lap times")
     address = parameters[0]
     parameter = twin.space.parameter(address)
-    bounds = o.parse_bounds(args.bounds, parameters).get(address, LiveOptions.bounds if address == "motion.mu" else None)
+    bounds = o.parse_bounds(args.bounds, parameters).get(address)  # None: the aligner's default range
     options = LiveOptions(address, bounds, args.threshold, args.k_laps, args.seed)
     rec = LiveRecording(args.save, args.view, address, parameter.unit) if (args.save or args.view) else None
     on_lap = _lap_printer(out, address, rec)
