@@ -162,22 +162,39 @@ def line_chart(path: str, axis: Axis, points: Sequence[Point], title: str) -> No
     plt.close(fig)
 
 
-def heat_map(path: str, axes: Sequence[Axis], points: Sequence[Point], title: str) -> None:
+def cell_edges(values: Sequence[float]) -> np.ndarray:
+    """Edges of the cells centred on grid values: midway between neighbours, and as far beyond the ends (a single
+    value gets a cell of ±half its size, or ±0.5 at zero)."""
+    v = np.asarray(values, dtype=float)
+    if len(v) == 1:
+        half = 0.5 * abs(v[0]) or 0.5
+        return np.array([v[0] - half, v[0] + half])
+    mid = (v[1:] + v[:-1]) / 2
+    return np.concatenate([[2 * v[0] - mid[0]], mid, [2 * v[-1] - mid[-1]]])
+
+
+def heat_map_figure(axes: Sequence[Axis], points: Sequence[Point], title: str):
+    """Median lap time and completion over a 2-D grid: each cell centred on its grid point (``pcolormesh`` on
+    :func:`cell_edges`; an ``imshow`` extent at the axis limits would put cell edges on the grid values)."""
     a, b = axes
     shape = (a.count, b.count)
     maps = [("median lap time [s]", np.array([p.median_s for p in points]).reshape(shape)),
             ("laps completed [-]", np.array([p.completion for p in points]).reshape(shape))]
     fig, panels = plt.subplots(1, 2, figsize=(11, 4.5), dpi=110)
-    extent = [b.lower, b.upper, a.lower, a.upper]
     for ax, (name, m) in zip(panels, maps):
         cmap = plt.get_cmap("viridis").with_extremes(bad="tab:red")  # red: no completed lap at all
-        image = ax.imshow(np.ma.masked_invalid(m), origin="lower", aspect="auto", extent=extent, cmap=cmap)
+        image = ax.pcolormesh(cell_edges(b.values), cell_edges(a.values), np.ma.masked_invalid(m), cmap=cmap)
         fig.colorbar(image, ax=ax, label=name)
         ax.set_xlabel(b.address)
         ax.set_ylabel(a.address)
         ax.set_title(name + " (red: no lap completed)" if name.startswith("median") else name, fontsize=9)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    return fig
+
+
+def heat_map(path: str, axes: Sequence[Axis], points: Sequence[Point], title: str) -> None:
+    fig = heat_map_figure(axes, points, title)
     fig.savefig(path)
     plt.close(fig)
 
