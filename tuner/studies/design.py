@@ -1,8 +1,8 @@
 """Design-parameter study (paper §4.2, Fig. 5): how the robot's geometry changes the lap time it can reach.
 
 For each design on a grid over ``cad.*`` parameters: rebuild the robot, tune the control gains from the same
-start with the learning model until convergence, then run the converged gains for ``laps`` laps with
-different sensor-noise seeds (the paper takes laps from lap 100 on, once the gains have converged). The
+start with the learning model until convergence (or the iteration cap: each design says which, ``converged`` and
+``search``), then run the tuned gains for ``laps`` laps with different sensor-noise seeds (the paper takes laps from lap 100 on, once the gains have converged). The
 spread of those laps is the design's lap-time distribution.
 
 Designs run in parallel, one process per core (each tunes with one thread, so a design's result does not
@@ -58,6 +58,12 @@ class DesignResult:
     mean_cross_track_m: float
     wall_s: float
     evidence: dict = dataclasses.field(default_factory=dict)  # tuner.studies.evidence, from one traced lap
+    search: str = ""  # how the gains' search ended: "converged: …", or the iteration cap it stopped at
+
+    @property
+    def tuned(self) -> str:
+        """A short word on the gains: converged, or the best found when the search stopped at its limit."""
+        return "converged" if self.converged else "not converged"
 
     @property
     def label(self) -> str:
@@ -101,7 +107,7 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
             design, True, None, gains, len(r.iterations), objective.laps, r.converged,
             tuple(float(e.lap_time_s) for e in done), len(evals) - len(done),
             float(np.mean([e.mean_cross_track_m for e in done])) if done else math.nan, time.perf_counter() - t0,
-            evidence(twin, seed=1))
+            evidence(twin, seed=1), r.reason)
     except LineFollowerError as e:
         return DesignResult(design, False, str(e), {}, 0, 0, False, (), 0, math.nan, time.perf_counter() - t0)
 

@@ -27,6 +27,11 @@ def slug(r: DesignResult) -> str:
     return "_".join(f"{a.replace('.', '-')}={v if isinstance(v, str) else format(v, 'g')}" for a, v in r.design.items())
 
 
+def chart_label(r: DesignResult) -> str:
+    """A design's label on the charts: its parameters, and a warning when its gains did not converge."""
+    return r.label + ("" if r.converged or not r.ok else ", (not converged)")
+
+
 def box_chart(path: str, results: Sequence[DesignResult], title: str) -> None:
     fig, ax = plt.subplots(figsize=(max(6.0, 1.1 * len(results) + 2), 4.5), dpi=120)
     data = [list(r.lap_times_s) if r.lap_times_s else [math.nan] for r in results]
@@ -38,7 +43,7 @@ def box_chart(path: str, results: Sequence[DesignResult], title: str) -> None:
         if not r.ok or not r.lap_times_s:
             ax.annotate("failed" if not r.ok else "no lap", (i, 0.5), xycoords=("data", "axes fraction"), ha="center",
                         color="tab:red")
-    ax.set_xticks(range(1, len(results) + 1), [r.label.replace(", ", "\n") for r in results], fontsize=8)
+    ax.set_xticks(range(1, len(results) + 1), [chart_label(r).replace(", ", "\n") for r in results], fontsize=8)
     ax.set_ylabel("lap time after tuning [s]")
     ax.set_title(title)
     ax.grid(axis="y", alpha=0.3)
@@ -53,7 +58,7 @@ def pareto_chart(path: str, results: Sequence[DesignResult], front: Sequence[boo
         if not (r.ok and r.lap_times_s):
             continue
         ax.plot(r.median_s, r.mean_cross_track_m * 1000, "o", color="tab:red" if on else "tab:gray", ms=7)
-        ax.annotate(r.label, (r.median_s, r.mean_cross_track_m * 1000), fontsize=7, xytext=(4, 3),
+        ax.annotate(chart_label(r), (r.median_s, r.mean_cross_track_m * 1000), fontsize=7, xytext=(4, 3),
                     textcoords="offset points")
     pts = sorted((r.median_s, r.mean_cross_track_m * 1000) for r, on in zip(results, front) if on)
     if pts:
@@ -80,20 +85,21 @@ def write_report(out_dir: str, results: Sequence[DesignResult], front: Sequence[
             w = csv.writer(f)
             w.writerow(names + ["ok", "error", "median_lap_time_s", "min_lap_time_s", "max_lap_time_s", "iqr_s",
                                 "laps_completed", "laps_failed", "mean_cross_track_m", "pareto", "converged",
-                                "tuning_iterations", "tuning_laps"] + gain_names)
+                                "search", "tuning_iterations", "tuning_laps"] + gain_names)
             for r, on in zip(results, front):
                 t = np.array(r.lap_times_s)
                 stats = ([float(np.median(t)), float(t.min()), float(t.max()),
                           float(np.subtract(*np.percentile(t, [75, 25])))] if len(t) else [""] * 4)
                 w.writerow([r.design[n] for n in names] + [r.ok, r.error or ""] + stats + [
                     len(t), r.failed_laps, "" if math.isnan(r.mean_cross_track_m) else r.mean_cross_track_m, on,
-                    r.converged, r.tuning_iterations, r.tuning_laps] + [r.gains.get(g, "") for g in gain_names])
+                    r.converged, r.search, r.tuning_iterations, r.tuning_laps] + [r.gains.get(g, "") for g in gain_names])
         os.makedirs(os.path.join(tmp, "gains"))
         for r in results:
             if r.ok:
                 with open(os.path.join(tmp, "gains", f"{slug(r)}.json"), "w") as f:
                     json.dump(json_safe({"generator": GENERATOR, "gains": r.gains, "design": r.design,
-                                         "track": meta["track"], "median_lap_time_s": r.median_s}), f, indent=2,
+                                         "track": meta["track"], "median_lap_time_s": r.median_s,
+                                         "converged": r.converged, "search": r.search}), f, indent=2,
                               allow_nan=False)
         with open(os.path.join(tmp, "designs.json"), "w") as f:
             json.dump(json_safe({"generator": GENERATOR, **meta, "trends": list(trends),

@@ -21,8 +21,8 @@ HELP = "design study: rebuild, tune and race every design of a grid over design 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("design", help=HELP, description=(
-        "For each design: rebuild the robot, tune the gains from the same start until convergence, run the converged "
-        "gains for --laps laps with different noise seeds. Writes a box plot, a Pareto chart, a table and per-design "
+        "For each design: rebuild the robot, tune the gains from the same start until convergence (or --max-iter: each "
+        "design says which), run the tuned gains for --laps laps with different noise seeds. Writes a box plot, a Pareto chart, a table and per-design "
         "gains to --out-dir."))
     default = " ".join(f"{a}={','.join(f'{v:g}' for v in vs)}" for a, vs in DEFAULT_GRID.items())
     p.add_argument("--grid", action="append", metavar="ADDRESS=V1,V2,...",
@@ -93,18 +93,26 @@ def run(args: argparse.Namespace) -> int:
                   "designs": [{"design": r.design, "ok": r.ok, "error": r.error,
                                "median_lap_time_s": r.median_s if r.ok else None, "laps_completed": len(r.lap_times_s),
                                "mean_cross_track_m": r.mean_cross_track_m if r.ok else None, "pareto": on,
-                               "gains": r.gains, "evidence": r.evidence} for r, on in zip(results, front)]})
+                               "gains": r.gains, "converged": r.converged, "search": r.search,
+                               "evidence": r.evidence} for r, on in zip(results, front)]})
     for r, on in zip(results, front):
         if r.ok:
             t = sorted(r.lap_times_s)
             spread = f"{t[0]:.3f}–{t[-1]:.3f}" if t else "–"
             out.say(f"{r.label:28s} median {r.median_s:7.3f} s ({spread}, {len(t)}/{len(t) + r.failed_laps} laps), "
                     f"cross-track {r.mean_cross_track_m * 1000:.1f} mm{'  pareto' if on else ''}")
+            if not r.converged:
+                out.say(f"{'':28s} gains not converged: the search stopped at its {r.search}; these are the best it "
+                        "had found (raise --max-iter)")
             out.say(f"{'':28s} {describe(r.evidence)}")
         else:
             out.say(f"{r.label:28s} failed: {r.error}")
     for t in trends:
         out.say(t)
+    stopped = sum(1 for r in results if r.ok and not r.converged)
+    if stopped:
+        out.say(f"warning: {stopped} of {len(results)} designs stopped at --max-iter {args.max_iter} before their gains "
+                "converged: their lap times are not what those designs can reach")
     out.say(f"{len(designs)} designs in {wall:.0f} s; wrote {paths['folder']} (lap_times.png, pareto.png, designs.csv, "
             "designs.json, gains/)")
     return 0
