@@ -11,9 +11,16 @@
 * :mod:`twin.cli`: the one command-line layer (``python -m twin.run``).
 
 Arrows point one way: model ← core ← telemetry ← pil ← link; viz reads core and telemetry; cli reads all.
-Importing ``twin`` loads nothing heavy (``python -m twin.run`` handles Ctrl-C from its first instant).
+Importing ``twin`` loads nothing at all (``python -m twin.run`` handles Ctrl-C from its first instant, and the package
+is imported before that handler is installed); ``TwinError`` loads on first use.
 """
 
-from twin.errors import TwinError
-
 __all__ = ["TwinError"]
+
+
+def __getattr__(name: str):
+    if name == "TwinError":
+        from twin.errors import TwinError
+
+        return TwinError
+    raise AttributeError(f"module 'twin' has no attribute {name!r}")

@@ -34,6 +34,7 @@ from tuner.search.objective import LapObjective
 from tuner.search.space import SearchSpace, robot_bounds
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
+from twin.core.identity import tuned_for
 from twin.model.motor_setup import MOTOR_MODEL, catalogue_motor, use_motor
 
 log = logging.getLogger(__name__)
@@ -59,6 +60,7 @@ class DesignResult:
     wall_s: float
     evidence: dict = dataclasses.field(default_factory=dict)  # tuner.studies.evidence, from one traced lap
     search: str = ""  # how the gains' search ended: "converged: …", or the iteration cap it stopped at
+    tuned_for: dict = dataclasses.field(default_factory=dict)  # the robot, motor and track (twin.core.identity)
 
     @property
     def tuned(self) -> str:
@@ -107,7 +109,7 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
             design, True, None, gains, len(r.iterations), objective.laps, r.converged,
             tuple(float(e.lap_time_s) for e in done), len(evals) - len(done),
             float(np.mean([e.mean_cross_track_m for e in done])) if done else math.nan, time.perf_counter() - t0,
-            evidence(twin, seed=1), r.reason)
+            evidence(twin, seed=1), r.reason, tuned_for(twin))
     except LineFollowerError as e:
         return DesignResult(design, False, str(e), {}, 0, 0, False, (), 0, math.nan, time.perf_counter() - t0)
 

@@ -99,7 +99,8 @@ def write_report(out_dir: str, results: Sequence[DesignResult], front: Sequence[
                 with open(os.path.join(tmp, "gains", f"{slug(r)}.json"), "w") as f:
                     json.dump(json_safe({"generator": GENERATOR, "gains": r.gains, "design": r.design,
                                          "track": meta["track"], "median_lap_time_s": r.median_s,
-                                         "converged": r.converged, "search": r.search}), f, indent=2,
+                                         "converged": r.converged, "search": r.search,
+                                         "tuned_for": r.tuned_for}), f, indent=2,
                               allow_nan=False)
         with open(os.path.join(tmp, "designs.json"), "w") as f:
             json.dump(json_safe({"generator": GENERATOR, **meta, "trends": list(trends),

@@ -59,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     echo_file = _echo_file(args.echo)
     try:
         twin = o.twin_from_args(args)
+        args.gains_warning = o.gains_warning(args, twin)
         twin.model()
         if args.firmware == "c":
             lines = lap_records(twin, args.seed, args.every, args.laps)
@@ -83,7 +84,7 @@ def _serve_tcp(args, lines, echo, out: Output) -> None:
     server = serve_tcp(args.tcp)
     with server:
         url = f"socket://127.0.0.1:{server.getsockname()[1]}"
-        out.document({"link": url})
+        out.document({"link": url, "gains_warning": args.gains_warning})
         out.say(f"robot emulator on {url}")
         while True:
             conn = accept(server, args.idle_timeout)
@@ -100,7 +101,7 @@ def _serve_pty(args, lines, echo, out: Output) -> None:
     master, slave, tty_path = open_pty(args.link)
     try:
         path = args.link or tty_path
-        out.document({"link": path})
+        out.document({"link": path, "gains_warning": args.gains_warning})
         out.say(f"robot emulator on {path}")
         stream(lines, pty_writer(master, args.idle_timeout), args.speed, echo)
         drain_pty(slave, args.idle_timeout)  # the last lap reaches the reader before the pty goes

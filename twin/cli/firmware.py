@@ -34,6 +34,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     twin = o.twin_from_args(args)
+    warning = o.gains_warning(args, twin)  # about to be flashed into a robot: say so before it is
     image = fw.config_image(twin.control_params(), twin.sensor_model().timeout_us, args.every)
     elf = fw.build("robot")
     info = fw.check_elf(elf, need=fw.TRACE_SYMBOLS)
@@ -50,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     flash = (f"avrdude -p m328p -c avrispv2 -P PORT -U flash:w:{os.path.join(folder, 'robot.hex')}:i "
              f"-U eeprom:w:{os.path.join(folder, 'config.hex')}:i")
     out.document({"folder": folder, "mcu": fw.MCU, "board": fw.BOARD, "flash_bytes": info.flash_bytes,
-                  "ram_bytes": info.ram_bytes, "eeprom_bytes": len(image), "avrdude": flash})
+                  "ram_bytes": info.ram_bytes, "eeprom_bytes": len(image), "avrdude": flash,
+                  "gains_warning": warning})
     out.say(f"wrote {folder}: robot.elf, robot.hex (flash {info.flash_bytes} B), config.hex (EEPROM {len(image)} B)")
     out.say(f"flash the robot (Pololu's USB AVR programmer speaks avrispv2): {flash}")
     return 0

@@ -40,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     recording.check_targets(args.save, args.view)  # before the lap: a bad path fails now, not after
     twin = o.twin_from_args(args)
+    warning = o.gains_warning(args, twin)
     limits, keep = LapLimits(timeout_s=args.lap_timeout), bool(args.save or args.view)
     mcu = None
     if args.firmware == "c":
@@ -48,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
         result, mcu = run_pil_lap(twin, None if args.firmware == "avr" else args.firmware, seed=args.seed,
                                   limits=limits, keep_trace=keep)
     saved = recording.save_laps(args.save, args.view, twin.track, twin.texture, [result], ["robot"])
-    summary = {**lap_summary(result, twin, args.seed), "firmware": args.firmware, "recording": saved}
+    summary = {**lap_summary(result, twin, args.seed), "firmware": args.firmware, "recording": saved,
+               "gains_warning": warning}
     if mcu:
         summary["mcu"] = mcu.summary()
     out.document(summary)

@@ -62,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
             raise TwinError("live: give --port PATH_OR_URL (or --replay LOG)")
         check_port(args.port)  # a malformed URL is refused before the twin is built
     twin = o.twin_from_args(args)
+    warning = o.gains_warning(args, twin)
     twin.model()
     parameters = args.param or ["motion.mu"]
     if len(parameters) != 1:
@@ -84,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
     if rec is not None:
         rec.close()
     summary["recording"] = rec.saved if rec is not None else None
+    summary["gains_warning"] = warning
     out.document(summary)
     return code
 

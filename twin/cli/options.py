@@ -20,7 +20,8 @@ from twin.cli.guard import fail
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.model.motor_setup import MOTOR_MODEL, catalogue_motor, motor_for_robot, use_motor
-from twin.model.parameter_files import load_gains, load_values
+from twin.core.identity import mismatch
+from twin.model.parameter_files import load_gains, load_values, tuned_for_record
 
 MAX_SEED = 2**64 - 1
 log = logging.getLogger(__name__)
@@ -305,6 +306,16 @@ def twin_from_args(args: argparse.Namespace, track: str | None = None) -> Digita
     twin.update(changes)
     _choose_motor(twin, getattr(args, "motor", None) or model, changes)
     return twin
+
+
+def gains_warning(args: argparse.Namespace, twin: DigitalTwin) -> str | None:
+    """When ``--gains`` names a file tuned for another robot, motor or track than ``twin`` runs: one line, logged as
+    a warning; the command puts it in its ``--json`` too (``gains_warning``, null when the gains fit)."""
+    path = getattr(args, "gains", None)
+    why = mismatch(tuned_for_record(path), twin, path) if path else None
+    if why:
+        log.warning(why)
+    return why
 
 
 CATEGORICAL = {MOTOR_MODEL: catalogue_motor}  # address → its check, which names the choices

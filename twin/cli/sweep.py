@@ -77,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     recording.check_targets(args.save, args.view)
     axes = [parse_axis(a) for a in args.axes]
     twin = o.twin_from_args(args)
+    warning = o.gains_warning(args, twin)
     check_axes(twin, axes)
     seeds = list(range(args.seed, args.seed + args.seeds))
     if args.cluster:
@@ -87,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
                                                                 if a.startswith("control.")}}
     paths = write_sweep(args.out_dir, axes, points, meta)
     paths["recording"] = recording.save_charts(args.save, args.view, {"sweep": paths["png"]})
-    out.document({**meta, "outputs": paths, "points": [p.row() for p in points]})
+    out.document({**meta, "outputs": paths, "points": [p.row() for p in points], "gains_warning": warning})
     failing = [p for p in points if p.completion < 1]
     for p in points:
         where = ", ".join(f"{a}={v:.4g}" for a, v in p.values.items())

@@ -23,6 +23,7 @@ from twin.cli import options as o
 from twin.cli.guard import run_command
 from twin.cli.output import Output
 from twin.core.closed_loop import run_laps
+from twin.core.identity import tuned_for
 from twin.model.space import ChangeCost
 from twin.model.parameter_files import save_values
 from tuner.search.gradient import DescentOptions, descend, sequential
@@ -191,7 +192,8 @@ def run(args: argparse.Namespace) -> int:
         summary["gains"] = values
     if args.out:
         summary["out"] = save_values(args.out, values, method=args.method, track=twin.track.name,
-                                     lap_time_s=final.lap_time_s, seed=args.seed, converged=converged)
+                                     lap_time_s=final.lap_time_s, seed=args.seed, converged=converged,
+                                     tuned_for=tuned_for(twin))
     if args.save or args.view:
         twin.update(values)
         best_lap = run_laps(twin, [{}], seed=args.seed)[0]

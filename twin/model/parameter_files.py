@@ -8,6 +8,9 @@ Two kinds, one format (an object of addresses and numbers, provenance beside it)
 * a **parameter file** holds any addresses, under ``"parameters"``: ``{"parameters": {"motion.mu": 0.62}}``.
   ``--params FILE`` reads it, and a gains file too.
 
+A gains file written by ``tune -o`` or ``design`` also records what it was tuned for (``"tuned_for"``: robot, motor,
+track; :mod:`twin.core.identity`), so a command that loads it can say when it runs another robot.
+
 Files are read with a size limit (1 MB) and every value is checked by the model space.
 """
 
@@ -55,6 +58,13 @@ def load_values(path: str, space: ModelSpace, kind: str = "parameters") -> dict[
             raise TwinError(f"{path}: {address}: not a number: {str(value)[:40]!r}")
         out[address] = parameter.check(f"{path}: {address}", value)
     return out
+
+
+def tuned_for_record(path: str) -> dict | None:
+    """The ``"tuned_for"`` record a gains file carries (what its gains were tuned for), or None."""
+    doc = parse_json(read_text(path, MAX_BYTES, "gains file"), path)
+    record = doc.get("tuned_for") if isinstance(doc, dict) else None
+    return record if isinstance(record, dict) else None
 
 
 def load_gains(path: str, space: ModelSpace) -> dict[str, float]:
