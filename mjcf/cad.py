@@ -35,8 +35,9 @@ def _origin(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> np.ndarray:
     return trimesh.transformations.compose_matrix(angles=rpy, translate=xyz)
 
 
-def _inertial(mesh: trimesh.Trimesh, mass: float, name: str) -> Inertial:
-    """URDF inertial of a watertight mesh at ``mass``: about its centre of mass, in the link frame."""
+def mesh_inertial(mesh: trimesh.Trimesh, mass: float, name: str) -> Inertial:
+    """URDF inertial of a watertight mesh at ``mass`` [kg] (density = mass / volume): about its centre of mass, in
+    the link frame; ``name`` names the mesh in the error when it is not watertight."""
     if not mesh.is_watertight:
         raise MjcfError(f"mesh {name}: not watertight, so it has no volume to take mass properties from")
     mesh = mesh.copy()
@@ -80,7 +81,7 @@ def robot_description(design: RobotDesign, mesh_dir: str = "meshes") -> Robot:
 
     base = Link(
         name=BASE_LINK,
-        inertial=_inertial(parts["chassis"], p.m_c, "chassis"),
+        inertial=mesh_inertial(parts["chassis"], p.m_c, "chassis"),
         visuals=[mesh_visual("chassis", grey)],
         collisions=[
             Collision(name="chassis", origin=_origin(), geometry=Geometry(mesh=Mesh(filename=f"{mesh_dir}/chassis.stl"))),
@@ -103,7 +104,7 @@ def robot_description(design: RobotDesign, mesh_dir: str = "meshes") -> Robot:
         links.append(
             Link(
                 name=link_name,
-                inertial=_inertial(parts["wheel"], p.m_w, "wheel"),
+                inertial=mesh_inertial(parts["wheel"], p.m_w, "wheel"),
                 visuals=[mesh_visual("wheel", black)],
                 collisions=[
                     Collision(

@@ -10,7 +10,7 @@ import yourdfpy
 
 from lf_common.files import output_dir
 from mjcf import MjcfError, RobotDesign
-from mjcf.cad import _inertial, write_robot
+from mjcf.cad import mesh_inertial, write_robot
 
 
 def test_urdf_has_stated_masses_and_geometric_inertias(tmp_path):
@@ -54,5 +54,5 @@ def test_non_watertight_mesh_has_no_inertia():
     box = trimesh.creation.box([0.1, 0.1, 0.1])
     open_box = trimesh.Trimesh(box.vertices, box.faces[:-2])  # two triangles missing
     with pytest.raises(MjcfError, match="not watertight"):
-        _inertial(open_box, 0.1, "open_box")
-    assert np.isfinite(_inertial(box, 0.1, "box").inertia).all()
+        mesh_inertial(open_box, 0.1, "open_box")
+    assert np.isfinite(mesh_inertial(box, 0.1, "box").inertia).all()
