@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -28,11 +29,17 @@ SMALL = ["--track", "oval", "--laps", "2", "--max-iter", "2"]
 BASE = {"track": "oval", "metres_per_pixel": None, "values": {}}
 
 
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 @pytest.fixture(scope="module")
 def head(tmp_path_factory):
-    """A local Ray head with 2 CPUs, stopped afterwards."""
-    with local_head(2, str(tmp_path_factory.mktemp("ray"))):
-        yield
+    """A local Ray head with 2 CPUs, serving Ray Client too; yields its ray:// address; stopped afterwards."""
+    with local_head(2, str(tmp_path_factory.mktemp("ray")), client_port=_free_port()) as client:
+        yield client
 
 
 def comparable(designs: list[dict]) -> list[dict]:
@@ -63,6 +70,18 @@ def test_a_sweep_on_the_cluster_equals_the_local_one(head, tmp_path):
     a, b = json.loads(local.stdout)["points"], json.loads(ray_run.stdout)["points"]
     assert len(a) == 3 and a == b
     assert len({p["median_lap_time_s"] for p in a}) == 3  # the points differ: an order mix-up would show
+
+
+def test_a_sweep_through_ray_client_equals_the_local_one_line_for_line(head, tmp_path):
+    """--cluster ray://HOST:PORT (Ray Client, the 'cluster' extra's ray[client]): the same sweep.csv, line for line."""
+    args = ["sweep", "control.kp=10:20:2", "--track", "oval", "--seeds", "2"]
+    local = subprocess.run([*RUN, *args, "--out-dir", tmp_path / "local"], capture_output=True, text=True, timeout=600)
+    assert local.returncode == 0, local.stderr
+    remote = subprocess.run([*RUN, *args, "--cluster", head, "--out-dir", tmp_path / "client"], capture_output=True,
+                            text=True, timeout=600)
+    assert remote.returncode == 0, remote.stderr
+    lines = (tmp_path / "local" / "sweep.csv").read_text().splitlines()
+    assert len(lines) == 3 and lines == (tmp_path / "client" / "sweep.csv").read_text().splitlines()
 
 
 def test_a_sweep_on_the_cluster_refuses_files_the_nodes_cannot_read(tmp_path):

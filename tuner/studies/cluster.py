@@ -66,6 +66,9 @@ def connect(address: str):
         return ray
     try:
         ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING)
+    except ImportError:  # plain 'ray' has no Ray Client (grpcio): ray:// needs the client extra
+        raise ClusterError(f"--cluster {address}: Ray Client is not installed: pip install -e '.[cluster]' "
+                           "(it brings ray[client])") from None
     except (ConnectionError, RuntimeError, ValueError, TimeoutError) as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ClusterError(f"--cluster {address}: no Ray cluster there ({first}); start one with 'ray start --head'") from None
@@ -148,16 +151,18 @@ def ray_executable() -> str:
 
 
 @contextlib.contextmanager
-def local_head(cpus: int, temp_dir: str) -> Iterator[None]:
+def local_head(cpus: int, temp_dir: str, client_port: int | None = None) -> Iterator[str]:
     """A Ray head on this machine with ``cpus`` CPUs (``ray start --head``), which ``auto`` then joins; stopped
-    (``ray stop --force``) afterwards. For tests and benchmarks: a real cluster is started by its operator."""
+    (``ray stop --force``) afterwards. With ``client_port`` it also serves Ray Client there, and yields its address
+    ``ray://127.0.0.1:PORT`` (else ``auto``). For tests and benchmarks: a real cluster is started by its operator."""
     exe = ray_executable()
+    client = ["--ray-client-server-port", str(client_port)] if client_port else []
     r = subprocess.run([exe, "start", "--head", "--num-cpus", str(cpus), "--include-dashboard", "false", "--port", "0",
-                        "--temp-dir", temp_dir], capture_output=True, text=True, timeout=120,
+                        "--temp-dir", temp_dir, *client], capture_output=True, text=True, timeout=120,
                        env={**os.environ, "RAY_USAGE_STATS_ENABLED": "0"})
     if r.returncode != 0:
         raise ClusterError(f"ray start --head failed: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
     try:
-        yield
+        yield f"ray://127.0.0.1:{client_port}" if client_port else "auto"
     finally:
         subprocess.run([exe, "stop", "--force"], capture_output=True, timeout=120)
