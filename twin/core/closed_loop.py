@@ -30,7 +30,8 @@ from twin.core.calibration_cause import calibration_cause
 from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
-from twin.core.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
+from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.outcomes import Outcome
 from twin.core.variant import Variant, field_key
 
 log = logging.getLogger(__name__)
@@ -134,17 +135,17 @@ class Fleet:
             self.batch.step(ids=ids, nstep=nstep)
         except mujoco.batch.SimulationError as e:
             for i in e.ids:
-                self._fail(int(i), DIVERGED, f"MuJoCo: {self.batch.error(int(i))}")
+                self._fail(int(i), Outcome.DIVERGED, f"MuJoCo: {self.batch.error(int(i))}")
         finally:
             core.flush_mujoco_log()
         for i in ids:
             why = core.refusal(self.sims[i])
             if why:
-                self._fail(int(i), REFUSED, why)
+                self._fail(int(i), Outcome.REFUSED, why)
         for i in ids[~np.isfinite(self.batch.qpos[ids]).all(axis=1)]:
-            self._fail(int(i), DIVERGED, "the physics produced a non-finite state")
+            self._fail(int(i), Outcome.DIVERGED, "the physics produced a non-finite state")
 
-    def _fail(self, i: int, code: str, detail: str) -> None:
+    def _fail(self, i: int, code: Outcome, detail: str) -> None:
         self.judges[i].fail(code, detail, float(self.batch.time[i]), 0.0)
 
     def drain(self, ids: list[int]) -> None:
@@ -210,8 +211,8 @@ def _refuse_long_turns(fleet: Fleet, limits: LapLimits) -> None:
     for lap, judge in zip(fleet.laps, fleet.judges):
         seconds = calibration_ticks(lap.params) * lap.params.dt_s
         if seconds > limits.calibration_timeout_s:
-            judge.fail(CALIBRATION, f"the calibration turn would take {seconds:.6g} s (limit {limits.calibration_timeout_s:g} s "
-                       "simulated): raise control.cal_duty or control.full_speed, or lower control.cal_sweep or "
+            judge.fail(Outcome.CALIBRATION, f"the calibration turn would take {seconds:.6g} s (limit "
+                       f"{limits.calibration_timeout_s:g} s simulated): raise control.cal_duty or control.full_speed, or lower control.cal_sweep or "
                        "control.cal_sweeps", 0.0, 0.0)
 
 
@@ -261,8 +262,8 @@ def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limi
         if np.min(spans) < limits.min_calibration_range_us:
             bad = int(np.argmin(spans))
             cause = calibration_cause(fleet.twin, lap.params, lap.sensor, limits.min_calibration_range_us)
-            judge.fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; likely "
-                       f"{cause}", 0.0, 0.0)
+            judge.fail(Outcome.CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; "
+                       f"likely {cause}", 0.0, 0.0)
         start_phase(sim, RUN)
     return cal
 

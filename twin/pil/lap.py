@@ -24,13 +24,13 @@ from twin.core.calibration_cause import calibration_cause
 from twin.core.closed_loop import check_seed, setup
 from twin.model.control import CALIBRATE, IDLE, RUN, calibration_ticks
 from twin.core.digital_twin import DigitalTwin
-from twin.core.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
+from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.outcomes import Outcome, Status, outcome_of
 from twin.errors import TwinError
-from twin.pil.mcu import RUNNING, Mcu, state_size
+from twin.pil.mcu import Mcu, state_size
 from twin.core.variant import Variant
 from twin.telemetry.wire import WireError, decode
 
-STALLED = "firmware_stalled"
 PIL_MAGIC = core.MAGIC + 1.0  # the C callback acts on core.MAGIC only: this head is the glue's
 CHUNK_S = 0.1  # simulated seconds per call into the glue: Python judges the lap and drains the UART this often
 TELEMETRY_EVERY = 2  # one sample line every 2 ticks, as the emulator's default
@@ -106,7 +106,7 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
         cal_min, cal_max = [], []
         turn_s = calibration_ticks(params) * params.dt_s
         if turn_s > limits.calibration_timeout_s:
-            judge.fail(CALIBRATION, f"the calibration turn would take {turn_s:.6g} s (limit "
+            judge.fail(Outcome.CALIBRATION, f"the calibration turn would take {turn_s:.6g} s (limit "
                        f"{limits.calibration_timeout_s:g} s simulated)", 0.0, 0.0)
         else:
             _calibrate(mcu, data, sim, judge, telemetry, steps, limits)
@@ -117,8 +117,8 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
             if np.min(spans) < limits.min_calibration_range_us:
                 bad = int(np.argmin(spans))
                 cause = calibration_cause(twin, params, sensor, limits.min_calibration_range_us)
-                judge.fail(CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; likely "
-                           f"{cause}", 0.0, 0.0)
+                judge.fail(Outcome.CALIBRATION, f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; "
+                           f"likely {cause}", 0.0, 0.0)
         if not judge.done:
             rng = sim.rng
             sim = _place(model, data, twin, lap, seed)  # put back on the start line: MuJoCo's time 0
@@ -179,15 +179,15 @@ class _Telemetry:
                 self.on_line(t + self.offset, line)
 
 
-def _advance(mcu: Mcu, data: mujoco.MjData, telemetry: _Telemetry, steps: int) -> tuple[str, str] | None:
+def _advance(mcu: Mcu, data: mujoco.MjData, telemetry: _Telemetry, steps: int) -> tuple[Outcome, str] | None:
     """One chunk in lockstep; (failure, detail) if the lap cannot go on (stalled, diverged, refused)."""
-    code, why = mcu.lockstep(steps)
+    status, why = mcu.lockstep(steps)
     core.flush_mujoco_log()
     telemetry.take(mcu.uart(), float(data.time))
-    if code != RUNNING:
-        return (STALLED if code == 1 else REFUSED), why
+    if status != Status.OK:
+        return outcome_of(status), why
     if not np.isfinite(data.qpos).all():
-        return DIVERGED, "the physics produced a non-finite state"
+        return Outcome.DIVERGED, "the physics produced a non-finite state"
     return None
 
 
@@ -206,10 +206,12 @@ def _calibrate(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, te
             telemetry.offset = -float(data.time)  # lap times count from the button press
             return
         if mode != CALIBRATE:
-            judge.fail(STALLED, f"the firmware left its calibration turn for mode {mode}, not idle", float(data.time), 0.0)
+            judge.fail(Outcome.FIRMWARE_STALLED, f"the firmware left its calibration turn for mode {mode}, not idle",
+                       float(data.time), 0.0)
             return
         if data.time > limits.calibration_timeout_s + 1.0:
-            judge.fail(CALIBRATION, f"the firmware's calibration turn did not end in {limits.calibration_timeout_s:g} s",
+            judge.fail(Outcome.CALIBRATION,
+                       f"the firmware's calibration turn did not end in {limits.calibration_timeout_s:g} s",
                        float(data.time), 0.0)
             return
 
@@ -225,14 +227,14 @@ def _drive(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, teleme
         try:
             judge.feed(core.records_since(data.userdata, sim, consumed))
         except TwinError as e:
-            judge.fail(REFUSED, str(e), float(data.time), float(sim.energy_j))
+            judge.fail(Outcome.REFUSED, str(e), float(data.time), float(sim.energy_j))
             return
         consumed = sim.records_written
         if failure:  # after the chunk's ticks: a lap completed before the firmware stalled is completed
             judge.fail(*failure, float(data.time), float(sim.energy_j))
             return
         if pressed and data.time > 1.0:
-            judge.fail(STALLED, "the firmware did not start within 1 s of button B being pressed", float(data.time),
-                       float(sim.energy_j))
+            judge.fail(Outcome.FIRMWARE_STALLED, "the firmware did not start within 1 s of button B being pressed",
+                       float(data.time), float(sim.energy_j))
             return
 
