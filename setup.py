@@ -36,7 +36,7 @@ FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra"]
 pil = [
     Extension(
         "twin.pil._lfavr",
-        sources=sources + ["twin/csrc/pil/avr_glue.c"],
+        sources=sources + sorted(glob.glob("twin/csrc/pil/*.c")),
         include_dirs=[mujoco_include(), "twin/csrc"],
         extra_compile_args=FLAGS,
         libraries=["simavr", "m"],

@@ -23,6 +23,7 @@ from twin.core.closed_loop import CHUNK_TICKS, MIN_CHUNK_TICKS, chunk_ticks, run
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.core.lap import LapLimits
+from twin.core.outcomes import REFUSALS, Outcome, c_names
 
 CSRC = os.path.join(os.path.dirname(__file__), "..", "twin", "csrc")
 
@@ -35,7 +36,7 @@ def header_constants(path: str) -> dict[str, int]:
     return found
 
 
-ERRORS = header_constants("sim/twin_core.h")
+STATUSES = header_constants("sim/lf_status.h")
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +89,30 @@ def test_python_and_c_agree_on_the_limits():
     fw = header_constants("firmware/line_follower.h")
     assert MAX_SENSORS == fw["LF_MAX_SENSORS"]
     assert core.LAYOUT_VERSION == header_constants("sim/twin_core.h")["LF_LAYOUT_VERSION"]
-    assert set(core.REFUSALS) == {v for k, v in ERRORS.items() if k.startswith("LF_ERR_")}
+    # every code lf_check returns (the misfits of a head) has its words for the lap's detail
+    text = open(os.path.join(CSRC, "sim", "mujoco_glue.c")).read()
+    check = text[text.index("int32_t lf_check("):]
+    returned = set(re.findall(r"return (LF_ERR_\w+);", check[: check.index("\n}\n")]))
+    assert {f"LF_{s.name}" for s in REFUSALS} == returned
+
+
+# --- status codes: one enumeration in C (lf_status.h), named in each library's table, mirrored by Python
+def test_the_status_codes_are_one_enumeration_in_c_and_python():
+    assert STATUSES == core.library_statuses(core.lib) == c_names()  # the header's text, the library's table, Python
+
+
+def test_a_status_code_on_one_side_only_fails_the_import_check():
+    c = core.library_statuses(core.lib)
+    with pytest.raises(ImportError, match="LF_STALLED: value C 10, Python 11.*rebuild"):
+        core.check_same(c, {**c_names(), "LF_STALLED": 11}, "value")
+    with pytest.raises(ImportError, match="LF_ERR_NEW: value C None, Python 12"):
+        core.check_same(c, {**c_names(), "LF_ERR_NEW": 12}, "value")
+
+
+def test_lap_outcomes_are_the_strings_results_carry():
+    assert [o.value for o in Outcome] == ["completed", "off_track", "line_lost", "timeout", "diverged", "calibration",
+                                          "refused", "firmware_stalled"]
+    assert all(type(o.value) is str for o in Outcome)  # LapResult.failure holds these, never the members
 
 
 # --- the callback refuses userdata that does not fit its model
@@ -154,7 +178,7 @@ def test_a_head_that_fits_is_run():
 ])
 def test_a_head_that_does_not_fit_is_refused_untouched(case, code):
     out = refuse(case)
-    assert out["error"] == ERRORS[code]
+    assert out["error"] == STATUSES[code]
     assert out["ctrl"] == [0.0, 0.0]  # refused before the first tick: the motors were never driven
     assert out["why"].startswith("the C loop refused the simulation: its userdata did not match the model")
 

@@ -164,12 +164,14 @@ def build_fault(tmp_path, fault: int) -> str:
     (4, "the MCU stopped"),
 ])
 def test_a_stalled_firmware_is_a_lap_result_not_a_hang(pil_ready, default_twin, tmp_path, fault, needle):
-    from twin.pil.lap import STALLED, run_pil_lap, stall_limit_s
+    from twin.core.outcomes import Outcome
+    from twin.pil.lap import run_pil_lap, stall_limit_s
 
     elf = build_fault(tmp_path, fault)
     t0 = time.perf_counter()
     result, _ = run_pil_lap(default_twin, elf)
-    assert result.failure == STALLED and needle in result.detail, result.detail
+    assert result.failure == "firmware_stalled" == Outcome.FIRMWARE_STALLED and needle in result.detail, result.detail
+    assert type(result.failure) is str
     assert result.simulated_s <= stall_limit_s(0.005) + 0.01  # the watchdog's window, on simulated time
     assert time.perf_counter() - t0 < 60
 

@@ -30,7 +30,8 @@ from twin.core.calibration import range_too_small, turn_too_long
 from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
-from twin.core.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
+from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.outcomes import Outcome
 from twin.core.variant import Variant, field_key
 
 log = logging.getLogger(__name__)
@@ -134,17 +135,17 @@ class Fleet:
             self.batch.step(ids=ids, nstep=nstep)
         except mujoco.batch.SimulationError as e:
             for i in e.ids:
-                self._fail(int(i), DIVERGED, f"MuJoCo: {self.batch.error(int(i))}")
+                self._fail(int(i), Outcome.DIVERGED, f"MuJoCo: {self.batch.error(int(i))}")
         finally:
             core.flush_mujoco_log()
         for i in ids:
             why = core.refusal(self.sims[i])
             if why:
-                self._fail(int(i), REFUSED, why)
+                self._fail(int(i), Outcome.REFUSED, why)
         for i in ids[~np.isfinite(self.batch.qpos[ids]).all(axis=1)]:
-            self._fail(int(i), DIVERGED, "the physics produced a non-finite state")
+            self._fail(int(i), Outcome.DIVERGED, "the physics produced a non-finite state")
 
-    def _fail(self, i: int, code: str, detail: str) -> None:
+    def _fail(self, i: int, code: Outcome, detail: str) -> None:
         self.judges[i].fail(code, detail, float(self.batch.time[i]), 0.0)
 
     def drain(self, ids: list[int]) -> None:
@@ -209,7 +210,7 @@ def _refuse_long_turns(fleet: Fleet, limits: LapLimits) -> None:
     """End, before any simulation, the laps whose turn would take longer than the limit (no wall time spent)."""
     for lap, judge in zip(fleet.laps, fleet.judges):
         if why := turn_too_long(lap.params, limits):
-            judge.fail(CALIBRATION, why, 0.0, 0.0)
+            judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
 
 
 def _calibrate(fleet: Fleet, keys: list[tuple], turns: dict) -> dict[tuple, tuple]:
@@ -255,7 +256,7 @@ def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limi
         sim.rng = rng
         cal.append((list(lo), list(hi)))
         if why := range_too_small(fleet.twin, lap.params, lap.sensor, lo, hi, limits):
-            judge.fail(CALIBRATION, why, 0.0, 0.0)
+            judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         start_phase(sim, RUN)
     return cal
 

@@ -13,9 +13,10 @@ nearest the centre of rotation (computed by the C loop at every tick, ``lf_locat
   ``min_calibration_range_us`` (it never saw both the line and the ground), or the turn would take longer
   than ``calibration_timeout_s`` of simulated time (then it is not simulated at all);
 * ``refused``: the C loop found that a simulation's userdata did not fit the model it was stepped with
-  (a program error, reported as a result rather than a crash).
+  (a program error, reported as a result rather than a crash);
+* ``firmware_stalled``: the robot's binary in the loop stopped (:mod:`twin.pil.lap`).
 
-A failed lap is a result, not an exception.
+A failed lap is a result, not an exception. The codes are :class:`twin.core.outcomes.Outcome`.
 """
 
 from __future__ import annotations
@@ -27,10 +28,9 @@ import numpy as np
 
 from mjcf.track import Track
 from twin.core import native as core
+from twin.core.outcomes import Outcome
 from twin.errors import TwinError
 
-COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED, CALIBRATION, REFUSED = (
-    "completed", "off_track", "line_lost", "timeout", "diverged", "calibration", "refused")
 COL = {name: i for i, name in enumerate(core.RECORD_FIELDS)}
 
 
@@ -119,7 +119,7 @@ class LapJudge:
         self.abs_sum = 0.0
         self.abs_max = 0.0
         self.chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        self.outcome: tuple[str, str, float, float, float] | None = None  # failure, detail, time, progress, energy
+        self.outcome: tuple[Outcome, str, float, float, float] | None = None  # failure, detail, time, progress, energy
 
     @property
     def done(self) -> bool:
@@ -145,12 +145,13 @@ class LapJudge:
         lim = self.limits
         finite = np.isfinite(rec[:, COL["x_m"]]) & np.isfinite(rec[:, COL["y_m"]])
         events = [
-            (~finite, DIVERGED, "the physics produced a non-finite pose"),
-            (np.abs(offset) > lim.max_cross_track_m, OFF_TRACK, f"more than {lim.max_cross_track_m * 100:g} cm from the line"),
-            (np.abs(du) > lim.max_progress_jump_m, OFF_TRACK, "cut across to another part of the track"),
-            (t - last_seen > lim.max_line_lost_s, LINE_LOST, f"line not seen for {lim.max_line_lost_s:g} s"),
-            (u >= length, COMPLETED, "lap completed"),
-            (t > lim.timeout_s, TIMEOUT, f"no lap after {lim.timeout_s:g} s"),
+            (~finite, Outcome.DIVERGED, "the physics produced a non-finite pose"),
+            (np.abs(offset) > lim.max_cross_track_m, Outcome.OFF_TRACK,
+             f"more than {lim.max_cross_track_m * 100:g} cm from the line"),
+            (np.abs(du) > lim.max_progress_jump_m, Outcome.OFF_TRACK, "cut across to another part of the track"),
+            (t - last_seen > lim.max_line_lost_s, Outcome.LINE_LOST, f"line not seen for {lim.max_line_lost_s:g} s"),
+            (u >= length, Outcome.COMPLETED, "lap completed"),
+            (t > lim.timeout_s, Outcome.TIMEOUT, f"no lap after {lim.timeout_s:g} s"),
         ]
         end, why = len(rec), None
         for mask, code, detail in events:
@@ -166,7 +167,7 @@ class LapJudge:
             return
         code, detail = why
         t_end, u_end, energy = float(t[end]), float(u[end]), float(rec[end, COL["energy_j"]])
-        if code == COMPLETED and u_end > prev[1]:
+        if code == Outcome.COMPLETED and u_end > prev[1]:
             f = (length - prev[1]) / (u_end - prev[1])  # interpolate the crossing between two ticks
             t_end = prev[0] + f * (t_end - prev[0])
             energy = prev[2] + f * (energy - prev[2])
@@ -183,7 +184,7 @@ class LapJudge:
         if self.keep_trace:
             self.chunks.append((rec.copy(), u.copy(), offset.copy()))
 
-    def fail(self, code: str, detail: str, t: float, energy: float) -> None:
+    def fail(self, code: Outcome, detail: str, t: float, energy: float) -> None:
         """End the lap from outside the trace (a MuJoCo error, a failed calibration)."""
         if not self.done:
             self.outcome = (code, detail, t, self.u_last or 0.0, energy)
@@ -196,9 +197,9 @@ class LapJudge:
         if self.keep_trace and self.chunks:
             rec, u, off = (np.concatenate(x) for x in zip(*self.chunks))
             trace = LapTrace(rec, u, off, count)
-        completed = code == COMPLETED
-        return LapResult(
-            completed=completed, failure=None if completed else code, detail=detail,
+        completed = code == Outcome.COMPLETED
+        return LapResult(  # failure: the plain string, as JSON and every reader of a result take it
+            completed=completed, failure=None if completed else Outcome(code).value, detail=detail,
             lap_time_s=t_end if completed else None, simulated_s=t_end, distance_m=max(0.0, u_end),
             track_length_m=self.track.length_m, max_cross_track_m=self.abs_max,
             mean_cross_track_m=self.abs_sum / self.n if self.n else 0.0, energy_j=energy,

@@ -2,8 +2,9 @@
 
 Python validates and C trusts (as ``mujoco.rollout`` does): every value written here has been checked by
 the model space or the dataclasses before. At load, every mirrored field's offset and size is compared with
-the library's own, and the MuJoCo it was compiled against with the one imported, so a stale build fails
-loudly. The callback itself refuses a head that does not fit the model it is stepped with (``Sim.error``).
+the library's own, its status codes' names and values with :class:`twin.core.outcomes.Status`, and the MuJoCo it
+was compiled against with the one imported, so a stale build fails loudly. The callback itself refuses a head that
+does not fit the model it is stepped with (``Sim.error``).
 
 Loading also routes MuJoCo's warnings to the ``mujoco`` logger (:func:`flush_mujoco_log`) instead of
 MUJOCO_LOG.TXT in the working directory.
@@ -22,22 +23,13 @@ import mujoco
 import numpy as np
 
 from line_sensor.geometry import MAX_SENSORS
+from twin.core.outcomes import REFUSALS, c_names
 from twin.errors import TwinError
 
 MAGIC = 1279676025.0
 LAYOUT_VERSION = 5
 # the model sizes a head is written for, in the order of model_signature() in mujoco_glue.c
 SIGNATURE = ("nbody", "nsite", "ntex", "ntexdata", "nu", "na", "nv", "nnumericdata")
-# Sim.error: why the callback refused a simulation (enum lf_error in twin_core.h)
-REFUSALS = {
-    1: "its layout version is not this library's",
-    2: "the model's sizes are not those it was written for",
-    3: "its trace ring is empty or does not fit in the model's userdata",
-    4: f"its sensor count is outside 1..{MAX_SENSORS} or differs from the firmware's",
-    5: "a site, body, texture, actuator or joint id is outside the model",
-    6: "its centre line does not lie inside the model's numeric data",
-    7: "its record counter is negative",
-}
 
 
 class Params(ctypes.Structure):
@@ -127,6 +119,12 @@ class Field(ctypes.Structure):
     _fields_ = [("name", ctypes.c_char_p), ("offset", c_int64), ("size", c_int64)]
 
 
+class StatusName(ctypes.Structure):
+    """``lf_status_name``: one row of the library's table of status codes."""
+
+    _fields_ = [("name", ctypes.c_char_p), ("value", c_int32)]
+
+
 def mirrors() -> dict[str, dict[str, tuple[int, int]]]:
     """{C struct: {field: (offset, size) in bytes}} as this module mirrors them; records are rows of float64."""
     out = {c: {f[0]: (getattr(cls, f[0]).offset, getattr(cls, f[0]).size) for f in cls._fields_}
@@ -137,23 +135,34 @@ def mirrors() -> dict[str, dict[str, tuple[int, int]]]:
     return out
 
 
+def check_same(c: dict, py: dict, what: str, library: str = "twin.core._lfcore") -> None:
+    """Raise ImportError naming the first key whose value (``what``) differs between the library's table ``c`` and
+    Python's ``py``, or that one of them lacks."""
+    for name in sorted(set(c) | set(py)):
+        if c.get(name) != py.get(name):
+            raise ImportError(f"{library} does not match this Python package ({name}: {what} C {c.get(name)}, "
+                              f"Python {py.get(name)}); rebuild it with pip install -e .")
+
+
 def check_layout(c_fields: dict[str, tuple[int, int]], ours: dict[str, dict[str, tuple[int, int]]]) -> None:
     """Raise ImportError unless every mirrored field has the library's offset and size, and no field is missing on
     either side. ``c_fields``: {"struct.field": (offset, size)} from ``lf_layout``."""
-    py_fields = {f"{struct}.{name}": at for struct, fields in ours.items() for name, at in fields.items()}
-    for name in sorted(set(c_fields) | set(py_fields)):
-        c, py = c_fields.get(name), py_fields.get(name)
-        if c != py:
-            raise ImportError(
-                f"twin.core._lfcore does not match this Python package ({name}: (offset, size) C {c}, Python {py}); "
-                "rebuild it with pip install -e ."
-            )
+    check_same(c_fields, {f"{struct}.{name}": at for struct, fields in ours.items() for name, at in fields.items()},
+               "(offset, size)")
 
 
-def library_layout(lib: ctypes.CDLL) -> dict[str, tuple[int, int]]:
+def library_layout(lib: ctypes.CDLL, function: str = "lf_layout") -> dict[str, tuple[int, int]]:
+    """{"struct.field": (offset, size) [bytes]} from a layout table (``lf_layout``, or the glue's ``lf_avr_layout``)."""
     table = ctypes.POINTER(Field)()
-    n = lib.lf_layout(ctypes.byref(table))
+    n = getattr(lib, function)(ctypes.byref(table))
     return {table[i].name.decode(): (table[i].offset, table[i].size) for i in range(n)}
+
+
+def library_statuses(lib: ctypes.CDLL) -> dict[str, int]:
+    """{C name: value} of every ``enum lf_status`` code, from ``lf_status_names``."""
+    table = ctypes.POINTER(StatusName)()
+    n = lib.lf_status_names(ctypes.byref(table))
+    return {table[i].name.decode(): table[i].value for i in range(n)}
 
 
 def _check_sizes(lib: ctypes.CDLL) -> None:
@@ -175,13 +184,15 @@ def _check_sizes(lib: ctypes.CDLL) -> None:
 
 
 def check_library(lib: ctypes.CDLL) -> None:
-    """Raise ImportError unless a library built from twin/csrc (``_lfcore``, ``_lfavr``) has this package's structs
-    and MuJoCo."""
-    lib.lf_sizes.restype = lib.lf_layout.restype = c_int32
+    """Raise ImportError unless a library built from twin/csrc (``_lfcore``, ``_lfavr``) has this package's structs,
+    status codes and MuJoCo."""
+    lib.lf_sizes.restype = lib.lf_layout.restype = lib.lf_status_names.restype = c_int32
     lib.lf_sizes.argtypes = [ctypes.POINTER(c_int64), c_int32]
     lib.lf_layout.argtypes = [ctypes.POINTER(ctypes.POINTER(Field))]
+    lib.lf_status_names.argtypes = [ctypes.POINTER(ctypes.POINTER(StatusName))]
     _check_sizes(lib)
     check_layout(library_layout(lib), mirrors())
+    check_same(library_statuses(lib), c_names(), "value")
 
 
 def mujoco_function(name: str) -> int:
@@ -192,8 +203,8 @@ def mujoco_function(name: str) -> int:
 def _load() -> ctypes.CDLL:
     lib = ctypes.CDLL(_library_path())
     try:
-        lib.lf_sizes.restype = lib.lf_layout.restype = c_int32
-    except AttributeError as e:  # built before the layout table existed
+        lib.lf_sizes.restype = lib.lf_layout.restype = lib.lf_status_names.restype = c_int32
+    except AttributeError as e:  # built before the layout or status tables existed
         raise ImportError(f"twin.core._lfcore is out of date ({e}); rebuild it with pip install -e .") from None
     check_library(lib)
     P, S = ctypes.POINTER, ctypes.POINTER(FwState)

@@ -41,10 +41,16 @@ TRACE_SYMBOLS = ("fw_state", "fw_raw_us", "fw_tick_mode", "fw_ticks_done")  # wh
 INSTALL_AVR_GCC = "apt-get install gcc-avr avr-libc binutils-avr"
 
 CONFIG_MAGIC = 0x3143464C  # "LFC1"
-_PARAMS = struct.Struct("<i15fi")  # lf_params on the MCU: count, 15 lf_real (32-bit float), cal_sweeps
 _PARAM_FIELDS = ("pitch_m", "sensor_distance_m", "v_max", "k_b", "k_p", "k_i", "k_d", "dt_s", "wheel_radius_m",
                  "half_track_m", "wheel_speed_max", "accel_max", "integral_limit", "cal_duty", "cal_sweep_rad")
-CONFIG_BYTES = 4 + 2 + _PARAMS.size + 2 + 2 + 2
+# config.h's lf_config on the MCU, field by field (struct codes: little-endian, no padding, lf_real a 32-bit float),
+# named as the glue's layout table names them (twin.pil.layout checks the two agree); the CRC-16 of these bytes follows
+_CONFIG_BODY = (("magic", "I"), ("size", "H"), ("params.count", "i"),
+                *((f"params.{f}", "f") for f in _PARAM_FIELDS), ("params.cal_sweeps", "i"),
+                ("timeout_us", "H"), ("telemetry_every", "H"))
+CONFIG_FIELDS = _CONFIG_BODY + (("crc", "H"),)
+_BODY = struct.Struct("<" + "".join(code for _, code in _CONFIG_BODY))
+CONFIG_BYTES = _BODY.size + 2
 
 
 def check_config(params: ControlParams, timeout_us: float) -> None:
@@ -66,10 +72,18 @@ def config_image(params: ControlParams, timeout_us: float, telemetry_every: int)
     check_config(params, timeout_us)
     if not 1 <= telemetry_every <= 65535:
         raise TwinError(f"telemetry every: 1..65535 ticks, got {telemetry_every}")
-    body = struct.pack("<IH", CONFIG_MAGIC, CONFIG_BYTES) + _PARAMS.pack(
-        params.count, *(getattr(params, f) for f in _PARAM_FIELDS), params.cal_sweeps
-    ) + struct.pack("<HH", round(timeout_us), telemetry_every)
+    body = _BODY.pack(CONFIG_MAGIC, CONFIG_BYTES, params.count, *(getattr(params, f) for f in _PARAM_FIELDS),
+                      params.cal_sweeps, round(timeout_us), telemetry_every)
     return body + struct.pack("<H", binascii.crc_hqx(body, 0))  # CRC-16/XMODEM, as avr-libc's _crc_xmodem_update
+
+
+def config_layout() -> dict[str, tuple[int, int]]:
+    """{field: (offset, size) [bytes]} of the image :func:`config_image` packs."""
+    out, at = {}, 0
+    for name, code in CONFIG_FIELDS:
+        out[name] = (at, struct.calcsize("<" + code))
+        at += out[name][1]
+    return out
 
 
 def intel_hex(data: bytes) -> str:

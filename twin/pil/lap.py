@@ -24,13 +24,13 @@ from twin.core.calibration import range_too_small, turn_too_long
 from twin.core.closed_loop import check_seed, setup
 from twin.model.control import CALIBRATE, IDLE, RUN
 from twin.core.digital_twin import DigitalTwin
-from twin.core.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
+from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.outcomes import Outcome, Status, outcome_of
 from twin.errors import TwinError
-from twin.pil.mcu import RUNNING, Mcu, state_size
+from twin.pil.mcu import Mcu, state_size
 from twin.core.variant import Variant
 from twin.telemetry.wire import LineSplitter, WireError, decode
 
-STALLED = "firmware_stalled"
 PIL_MAGIC = core.MAGIC + 1.0  # the C callback acts on core.MAGIC only: this head is the glue's
 CHUNK_S = 0.1  # simulated seconds per call into the glue: Python judges the lap and drains the UART this often
 TELEMETRY_EVERY = 2  # one sample line every 2 ticks, as the emulator's default
@@ -105,14 +105,14 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
         steps = max(1, round(CHUNK_S / model.opt.timestep))
         cal_min, cal_max = [], []
         if why := turn_too_long(params, limits):
-            judge.fail(CALIBRATION, why, 0.0, 0.0)
+            judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         else:
             _calibrate(mcu, data, sim, judge, telemetry, steps, limits)
         if not judge.done:
             state = mcu.state()
             cal_min, cal_max = list(state.cal_min[: params.count]), list(state.cal_max[: params.count])
             if why := range_too_small(twin, params, sensor, cal_min, cal_max, limits):
-                judge.fail(CALIBRATION, why, 0.0, 0.0)
+                judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         if not judge.done:
             rng = sim.rng
             sim = _place(model, data, twin, lap, seed)  # put back on the start line: MuJoCo's time 0
@@ -175,15 +175,15 @@ class _Telemetry:
                 self.on_line(t + self.offset, line)
 
 
-def _advance(mcu: Mcu, data: mujoco.MjData, telemetry: _Telemetry, steps: int) -> tuple[str, str] | None:
+def _advance(mcu: Mcu, data: mujoco.MjData, telemetry: _Telemetry, steps: int) -> tuple[Outcome, str] | None:
     """One chunk in lockstep; (failure, detail) if the lap cannot go on (stalled, diverged, refused)."""
-    code, why = mcu.lockstep(steps)
+    status, why = mcu.lockstep(steps)
     core.flush_mujoco_log()
     telemetry.take(mcu.uart(), float(data.time))
-    if code != RUNNING:
-        return (STALLED if code == 1 else REFUSED), why
+    if status != Status.OK:
+        return outcome_of(status), why
     if not np.isfinite(data.qpos).all():
-        return DIVERGED, "the physics produced a non-finite state"
+        return Outcome.DIVERGED, "the physics produced a non-finite state"
     return None
 
 
@@ -202,10 +202,12 @@ def _calibrate(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, te
             telemetry.offset = -float(data.time)  # lap times count from the button press
             return
         if mode != CALIBRATE:
-            judge.fail(STALLED, f"the firmware left its calibration turn for mode {mode}, not idle", float(data.time), 0.0)
+            judge.fail(Outcome.FIRMWARE_STALLED, f"the firmware left its calibration turn for mode {mode}, not idle",
+                       float(data.time), 0.0)
             return
         if data.time > limits.calibration_timeout_s + 1.0:
-            judge.fail(CALIBRATION, f"the firmware's calibration turn did not end in {limits.calibration_timeout_s:g} s",
+            judge.fail(Outcome.CALIBRATION,
+                       f"the firmware's calibration turn did not end in {limits.calibration_timeout_s:g} s",
                        float(data.time), 0.0)
             return
 
@@ -221,14 +223,14 @@ def _drive(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, teleme
         try:
             judge.feed(core.records_since(data.userdata, sim, consumed))
         except TwinError as e:
-            judge.fail(REFUSED, str(e), float(data.time), float(sim.energy_j))
+            judge.fail(Outcome.REFUSED, str(e), float(data.time), float(sim.energy_j))
             return
         consumed = sim.records_written
         if failure:  # after the chunk's ticks: a lap completed before the firmware stalled is completed
             judge.fail(*failure, float(data.time), float(sim.energy_j))
             return
         if pressed and data.time > 1.0:
-            judge.fail(STALLED, "the firmware did not start within 1 s of button B being pressed", float(data.time),
-                       float(sim.energy_j))
+            judge.fail(Outcome.FIRMWARE_STALLED, "the firmware did not start within 1 s of button B being pressed",
+                       float(data.time), float(sim.energy_j))
             return
 

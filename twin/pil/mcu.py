@@ -1,8 +1,9 @@
 """An emulated ATmega328P running a firmware ELF (simavr, through the C glue ``twin.pil._lfavr``).
 
 :class:`Mcu` loads a program and gives its RAM by symbol (``peek``/``poke``), its EEPROM, and, attached to a
-simulation, the lockstep with MuJoCo of ``twin/csrc/pil/avr_glue.c``. Without simavr the glue is not built, and
-opening an MCU says what to install.
+simulation, the lockstep with MuJoCo (``twin/csrc/pil``; ``avr_glue.h`` lists its files). Without simavr the glue is
+not built, and opening an MCU says what to install. The glue's structs are checked when it loads
+(:mod:`twin.pil.layout`).
 """
 
 from __future__ import annotations
@@ -15,20 +16,13 @@ from ctypes import c_char_p, c_double, c_int32, c_int64, c_uint32, c_uint64, c_v
 import mujoco
 
 from twin.core import native as core
+from twin.core.outcomes import Status
 from twin.pil.firmware import F_CPU_HZ, MCU, ElfInfo
+from twin.pil.layout import LIBRARY, AvrFwState, McuStatus, check_glue
 from twin.errors import TwinError
 
 INSTALL_SIMAVR = ("processor in the loop needs simavr: apt-get install simavr libsimavr-dev, then pip install -e . "
                   "again to build twin.pil._lfavr")
-RUNNING, STALLED, REFUSED = 0, 1, 2  # lf_avr_lockstep
-
-
-class McuStatus(ctypes.Structure):
-    """``lf_avr_status``: the MCU's figures so far."""
-
-    _fields_ = [("cycle", c_uint64), ("ticks", c_int64), ("busy_max", c_uint64), ("busy_sum", c_uint64),
-                ("busy_ticks", c_int64), ("uart_lost", c_int64), ("read_error_max_us", c_double),
-                ("read_error_sum_us", c_double), ("read_errors", c_int64)]
 
 
 _lib: ctypes.CDLL | None = None
@@ -49,8 +43,9 @@ def glue() -> ctypes.CDLL:
         raise TwinError(f"{INSTALL_SIMAVR} ({e})") from None
     try:
         core.check_library(lib)
-    except ImportError as e:  # built from older sources
-        raise TwinError(f"twin.pil._lfavr is out of date ({e}); rebuild it with pip install -e .") from None
+        check_glue(lib)
+    except (ImportError, AttributeError) as e:  # built from older sources
+        raise TwinError(f"{LIBRARY} is out of date ({e}); rebuild it with pip install -e .") from None
     lib.lf_set_ray.argtypes = [c_void_p]
     lib.lf_set_ray(core.mujoco_function("mj_ray"))
     p = ctypes.POINTER
@@ -73,7 +68,6 @@ def glue() -> ctypes.CDLL:
     lib.lf_avr_button.argtypes = [c_void_p, c_int32]
     lib.lf_avr_state.argtypes = [c_void_p, p(core.FwState)]
     lib.lf_avr_state.restype = c_int32
-    lib.lf_avr_state_size.restype = c_int32
     lib.lf_avr_lockstep.argtypes = [c_void_p, c_void_p, c_void_p, c_int64]
     lib.lf_avr_lockstep.restype = c_int32
     lib.lf_avr_message.argtypes = [c_void_p]
@@ -143,10 +137,11 @@ class Mcu:
         self._attached = (model, data, sim)  # kept alive while the C holds their addresses
         self.lib.lf_avr_attach(self.handle, model._address, data._address, ctypes.addressof(sim), stall_s)
 
-    def lockstep(self, nstep: int) -> tuple[int, str]:
+    def lockstep(self, nstep: int) -> tuple[Status, str]:
+        """Step the attached simulation ``nstep`` times with the MCU: OK, or why it stopped (stalled, refused)."""
         code = self.lib.lf_avr_lockstep(self.handle, core.mujoco_function("mj_step1"), core.mujoco_function("mj_step2"),
                                         nstep)
-        return code, (self.lib.lf_avr_message(self.handle) or b"").decode(errors="replace")
+        return Status(code), (self.lib.lf_avr_message(self.handle) or b"").decode(errors="replace")
 
     def zero_time(self) -> None:
         self.lib.lf_avr_zero_time(self.handle)
@@ -176,5 +171,6 @@ class Mcu:
 
 def state_size() -> int:
     """Bytes of the firmware's lf_state on the MCU as the glue reads it (checked against the ELF's symbol size)."""
-    return glue().lf_avr_state_size()
+    glue()  # its avr.lf_state is AvrFwState's size, or it does not load
+    return ctypes.sizeof(AvrFwState)
 

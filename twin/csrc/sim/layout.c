@@ -1,12 +1,10 @@
 /* The layout Python mirrors (twin.core.native): every field's offset and size, so a stale build or a mirror that drifted
- * from the C fails at import instead of reading the wrong bytes. */
+ * from the C fails at import instead of reading the wrong bytes; and the status codes' names (twin.core.outcomes). */
 #include <stddef.h>
 
 #include <mujoco/mujoco.h>
 
 #include "twin_core.h"
-
-#define LF_FIELD(type, field) {#type "." #field, (int64_t)offsetof(type, field), (int64_t)sizeof(((type *)0)->field)}
 
 static const lf_field fields[] = {
   LF_FIELD(lf_sim, magic), LF_FIELD(lf_sim, layout_version), LF_FIELD(lf_sim, error),
@@ -53,6 +51,19 @@ static const lf_field fields[] = {
 int32_t lf_layout(const lf_field **out) {
   *out = fields;
   return (int32_t)(sizeof(fields) / sizeof(fields[0]));
+}
+
+#define LF_STATUS(code) {#code, code}
+
+static const lf_status_name statuses[] = {
+  LF_STATUS(LF_OK), LF_STATUS(LF_ERR_LAYOUT), LF_STATUS(LF_ERR_MODEL), LF_STATUS(LF_ERR_CAPACITY),
+  LF_STATUS(LF_ERR_SENSORS), LF_STATUS(LF_ERR_ID), LF_STATUS(LF_ERR_CENTRE), LF_STATUS(LF_ERR_STATE),
+  LF_STATUS(LF_ERR_RAY), LF_STATUS(LF_ERR_FIRMWARE), LF_STATUS(LF_STALLED),
+};
+
+int32_t lf_status_names(const lf_status_name **out) {
+  *out = statuses;
+  return (int32_t)(sizeof(statuses) / sizeof(statuses[0]));
 }
 
 int32_t lf_sizes(int64_t *out, int32_t n) {

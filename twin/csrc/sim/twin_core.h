@@ -16,24 +16,13 @@
 #include <stdint.h>
 
 #include "../firmware/line_follower.h"
+#include "lf_status.h"
 #include "sensor_physics.h"
 
 #define LF_MAGIC 1279676025.0  /* "LFTy": marks userdata the callback owns; other models are left alone */
 #define LF_LAYOUT_VERSION 5
 #define LF_RECORD_FIXED 20
 #define LF_SIGNATURE 8 /* model sizes in lf_sim.model_signature: see model_signature() in mujoco_glue.c */
-
-/* Why the callback refused a simulation (lf_sim.error). */
-enum lf_error {
-  LF_OK = 0,
-  LF_ERR_LAYOUT = 1,   /* layout_version is not this library's */
-  LF_ERR_MODEL = 2,    /* the mjModel's sizes are not those the head was written for */
-  LF_ERR_CAPACITY = 3, /* record_capacity < 1, or the trace ring does not fit in nuserdata */
-  LF_ERR_SENSORS = 4,  /* nsensor or firmware.count outside 1..LF_MAX_SENSORS, or not equal */
-  LF_ERR_ID = 5,       /* a site, body, texture, actuator or dof id outside the model */
-  LF_ERR_CENTRE = 6,   /* the centre line does not lie inside numeric_data */
-  LF_ERR_STATE = 7     /* records_written < 0 */
-};
 
 /* One line of the trace, written at every control tick. */
 typedef struct {
@@ -60,7 +49,7 @@ typedef struct {
 typedef struct {
   double magic;
   int32_t layout_version;
-  int32_t error;                 /* enum lf_error: set by the callback when it refuses the simulation */
+  int32_t error;                 /* enum lf_status: set by the callback when it refuses the simulation */
   int64_t model_signature[LF_SIGNATURE]; /* the model's sizes when Python wrote the head */
   int32_t nsensor;
   int32_t sensor_site[LF_MAX_SENSORS]; /* site of each sensor; its z axis is the ray */
@@ -97,6 +86,9 @@ typedef struct {
   const char *name;
   int64_t offset, size;
 } lf_field;
+/* A row of such a table (offsetof: include <stddef.h>); LF_FIELD names it "type.field". */
+#define LF_FIELD_NAMED(name, type, field) {name, (int64_t)offsetof(type, field), (int64_t)sizeof(((type *)0)->field)}
+#define LF_FIELD(type, field) LF_FIELD_NAMED(#type "." #field, type, field)
 
 /* The fields of lf_sim, lf_record, lf_params, lf_state, lf_sensor_model and lf_texture; returns their number. */
 int32_t lf_layout(const lf_field **fields);

@@ -1,0 +1,61 @@
+/* The layout of the structs Python mirrors for the processor in the loop (twin.pil.layout): every field's offset and
+ * size, compared when the glue loads. The firmware's structs are named "avr.<its type>": the glue's copies of them as
+ * avr-gcc lays them out (no padding, lf_real a 32-bit float), which tests/test_pil_layout.py compiles against the
+ * firmware's own headers with avr-gcc. */
+#include <stddef.h>
+
+#include "avr_glue.h"
+
+/* The EEPROM configuration (firmware/avr/config.h) as avr-gcc lays it out. The glue never reads it: Python writes
+ * the image (twin.pil.firmware.config_image), and this copy lets the image's layout be checked. */
+#pragma pack(push, 1)
+typedef struct {
+  int32_t count;
+  float pitch_m, sensor_distance_m, v_max, k_b, k_p, k_i, k_d, dt_s, wheel_radius_m, half_track_m, wheel_speed_max,
+      accel_max, integral_limit, cal_duty, cal_sweep_rad;
+  int32_t cal_sweeps;
+} avr_lf_params;
+
+typedef struct {
+  uint32_t magic;
+  uint16_t size;
+  avr_lf_params params;
+  uint16_t timeout_us;
+  uint16_t telemetry_every;
+  uint16_t crc;
+} avr_lf_config;
+#pragma pack(pop)
+
+#define AVR_FIELD(type, field) LF_FIELD_NAMED("avr." #type "." #field, avr_##type, field)
+#define WHOLE(name, type) {name, 0, (int64_t)sizeof(type)}
+
+static const lf_field fields[] = {
+  WHOLE("avr.lf_state", avr_lf_state),
+  AVR_FIELD(lf_state, cal_min), AVR_FIELD(lf_state, cal_max), AVR_FIELD(lf_state, value),
+  AVR_FIELD(lf_state, position), AVR_FIELD(lf_state, last_position), AVR_FIELD(lf_state, line_seen),
+  AVR_FIELD(lf_state, mode), AVR_FIELD(lf_state, tick), AVR_FIELD(lf_state, e), AVR_FIELD(lf_state, e_prev),
+  AVR_FIELD(lf_state, integral), AVR_FIELD(lf_state, v), AVR_FIELD(lf_state, omega), AVR_FIELD(lf_state, duty_left),
+  AVR_FIELD(lf_state, duty_right),
+
+  WHOLE("avr.lf_config", avr_lf_config),
+  AVR_FIELD(lf_config, magic), AVR_FIELD(lf_config, size), AVR_FIELD(lf_config, params.count),
+  AVR_FIELD(lf_config, params.pitch_m), AVR_FIELD(lf_config, params.sensor_distance_m),
+  AVR_FIELD(lf_config, params.v_max), AVR_FIELD(lf_config, params.k_b), AVR_FIELD(lf_config, params.k_p),
+  AVR_FIELD(lf_config, params.k_i), AVR_FIELD(lf_config, params.k_d), AVR_FIELD(lf_config, params.dt_s),
+  AVR_FIELD(lf_config, params.wheel_radius_m), AVR_FIELD(lf_config, params.half_track_m),
+  AVR_FIELD(lf_config, params.wheel_speed_max), AVR_FIELD(lf_config, params.accel_max),
+  AVR_FIELD(lf_config, params.integral_limit), AVR_FIELD(lf_config, params.cal_duty),
+  AVR_FIELD(lf_config, params.cal_sweep_rad), AVR_FIELD(lf_config, params.cal_sweeps),
+  AVR_FIELD(lf_config, timeout_us), AVR_FIELD(lf_config, telemetry_every), AVR_FIELD(lf_config, crc),
+
+  WHOLE("lf_avr_status", lf_avr_status),
+  LF_FIELD(lf_avr_status, cycle), LF_FIELD(lf_avr_status, ticks), LF_FIELD(lf_avr_status, busy_max),
+  LF_FIELD(lf_avr_status, busy_sum), LF_FIELD(lf_avr_status, busy_ticks), LF_FIELD(lf_avr_status, uart_lost),
+  LF_FIELD(lf_avr_status, read_error_max_us), LF_FIELD(lf_avr_status, read_error_sum_us),
+  LF_FIELD(lf_avr_status, read_errors),
+};
+
+int32_t lf_avr_layout(const lf_field **out) {
+  *out = fields;
+  return (int32_t)(sizeof(fields) / sizeof(fields[0]));
+}
