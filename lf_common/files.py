@@ -1,6 +1,6 @@
 """Writing outputs without losing anything the user owns, and reading inputs within size limits.
 
-The rules (the README's "What is guaranteed" says the same):
+The rules (docs/cli.md's "What is guaranteed" says the same):
 
 * A file is written under a temporary name in its own folder, flushed to disk and renamed over the target,
   so a reader sees the old file or the new one, never half of one. A failure removes the temporary file.

@@ -1,6 +1,6 @@
 """Design parameters of the default robot (paper §3.2: L, R, S, m_c, m_w, d), checked on construction.
 
-Defaults are a Pololu 3pi+ 32U4 class line follower (see the README's table for sources).
+Defaults are a Pololu 3pi+ 32U4 class line follower (see docs/robot.md for sources).
 """
 
 from __future__ import annotations

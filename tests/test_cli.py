@@ -1,4 +1,4 @@
-"""The front door: one CLI layer over the libraries, one flag vocabulary (the README's table = ``--help``),
+"""The front door: one CLI layer over the libraries, one flag vocabulary (docs/cli.md's table = ``--help``),
 ``--json`` = exactly one JSON document on stdout, deprecated spellings that still work."""
 
 from __future__ import annotations
@@ -38,8 +38,8 @@ def visible_flags(p: argparse.ArgumentParser) -> set[str]:
 
 
 def readme_table() -> dict[str, set[str]]:
-    """The README's "Flags" table: flag → commands that have it."""
-    text = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
+    """The "Flags" table of docs/cli.md: flag → commands that have it."""
+    text = open(os.path.join(ROOT, "docs", "cli.md"), encoding="utf-8").read()
     section = text.split("\n## Flags\n", 1)[1].split("\n## ", 1)[0]
     table: dict[str, set[str]] = {}
     for line in section.splitlines():
@@ -60,10 +60,10 @@ def test_the_readme_flag_table_matches_help():
         for flag in visible_flags(p):
             found.setdefault(flag, set()).add(command)
     everyone = set(parsers())
-    assert set(table) == set(found), f"in help only: {set(found) - set(table)}; in README only: {set(table) - set(found)}"
+    assert set(table) == set(found), f"in help only: {set(found) - set(table)}; in docs/cli.md only: {set(table) - set(found)}"
     for flag, commands in found.items():
         listed = everyone if table[flag] == {"ALL"} else table[flag]
-        assert listed == commands, f"{flag}: README lists {sorted(listed)}, --help has it in {sorted(commands)}"
+        assert listed == commands, f"{flag}: docs/cli.md lists {sorted(listed)}, --help has it in {sorted(commands)}"
 
 
 def test_help_shows_defaults_and_every_command_is_listed_and_described():

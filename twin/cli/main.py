@@ -1,5 +1,5 @@
 """``python -m twin.run``: the front door to every command of the twin. ``python -m twin.run COMMAND --help``
-shows each command's options and their defaults; the README's "Flags" table says what each flag means."""
+shows each command's options and their defaults; docs/cli.md's "Flags" table says what each flag means."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The flag vocabulary, written once: the same word means the same thing in every command (the README's
+"""The flag vocabulary, written once: the same word means the same thing in every command (docs/cli.md's
 "Flags" table lists every flag; a test checks it against ``--help``). Old spellings keep working for one
 release, hidden from ``--help``, with a deprecation warning on stderr.
 
