@@ -15,3 +15,11 @@ void lf_sense_record(const mjModel *m, const mjData *d, lf_sim *s, double height
   if (s->fw.tick < LF_TICKS_MAX) s->fw.tick++;
   lf_write_record(m, d, s, s->fw.mode, height0);
 }
+
+int32_t lf_external_step(const mjModel *m, mjData *d, lf_sim *s, double *height0) {
+  if (!lf_ready(m, s)) return -1;
+  lf_integrate_energy(m, d, s);
+  if (!lf_tick_due(d, s)) return 0;
+  *height0 = lf_sense(m, d, s);
+  return 1;
+}
