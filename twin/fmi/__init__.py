@@ -5,7 +5,7 @@ controller FMUs driving the twin in its own loop (:class:`ControllerFmu`, :func:
 from twin.fmi.controller import DRIVE_PORTS, ControllerFmu, parse_map, sense_ports
 from twin.fmi.controller_lap import run_controller_lap
 from twin.fmi.export import ExportedFmu, export_fmu, fmu_is_ours
-from twin.fmi.variables import CLOSED_LOOP, KINDS, PLANT, Variable, variables
+from twin.fmi.variables import CLOSED_LOOP, KINDS, PLANT, Variable, fmu_variables
 
 __all__ = ["CLOSED_LOOP", "DRIVE_PORTS", "ControllerFmu", "ExportedFmu", "KINDS", "PLANT", "Variable", "export_fmu",
-           "fmu_is_ours", "parse_map", "run_controller_lap", "sense_ports", "variables"]
+           "fmu_is_ours", "fmu_variables", "parse_map", "run_controller_lap", "sense_ports"]

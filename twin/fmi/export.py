@@ -28,7 +28,7 @@ from twin.core.lap import LapLimits
 from twin.errors import TwinError
 from twin.fmi.build import compile_library, libmujoco, model_header
 from twin.fmi.description import model_description
-from twin.fmi.variables import CLOSED_LOOP, KINDS, PLANT, variables
+from twin.fmi.variables import CLOSED_LOOP, KINDS, PLANT, fmu_variables
 
 FMI_VERSIONS = (2, 3)
 PLATFORM = {2: "linux64", 3: "x86_64-linux"}  # the binaries folder of each standard
@@ -133,7 +133,7 @@ def export_fmu(twin: DigitalTwin, path: str, kind: str = CLOSED_LOOP, fmi_versio
     row = np.zeros(model.nuserdata)
     sim = setup(row, model, twin, params, twin.sensor_model(), seed, twin.physics())
     head = ctypes.string_at(ctypes.addressof(sim), ctypes.sizeof(sim))
-    table = variables(twin, kind, fmi_version, seed, limits.timeout_s)
+    table = fmu_variables(twin, kind, fmi_version, seed, limits.timeout_s)
     mjb = _model_bytes(model)
     digest = hashlib.sha256(mjb + head + repr((kind, fmi_version, table)).encode()).hexdigest()
     token = "{" + str(uuid.uuid5(TOKEN_NAMESPACE, digest)) + "}"

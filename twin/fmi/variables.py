@@ -134,7 +134,7 @@ def _parameters(twin: DigitalTwin, kind: str) -> list[Variable]:
     return out
 
 
-def variables(twin: DigitalTwin, kind: str, fmi_version: int, seed: int, lap_timeout_s: float) -> list[Variable]:
+def fmu_variables(twin: DigitalTwin, kind: str, fmi_version: int, seed: int, lap_timeout_s: float) -> list[Variable]:
     """The FMU's variables in value-reference order (row k has value reference k). ``twin``: built, with the
     values the FMU starts from."""
     if kind not in KINDS:
