@@ -22,7 +22,8 @@ from twin.fmi.variables import KIND_CODE, PARAM, Variable, c_name
 
 CSRC = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "csrc")
 CORE_SOURCES = ("firmware/line_follower.c", "sim/sensor_physics.c", "sim/mujoco_glue.c", "sim/lap_judge.c",
-                "sim/external_control.c", "fmi/fmu_twin.c", "fmi/fmu_params.c", "fmi/resource_path.c")
+                "sim/external_control.c", "fmi/fmu_twin.c", "fmi/fmu_params.c", "fmi/resource_path.c",
+                "fmi/fmi_face.c")
 FACE_SOURCES = {2: ("fmi/fmi2_face.c",), 3: ("fmi/fmi3_face.c", "fmi/fmi3_unsupported.c")}
 TYPES = {"Real": "LF_REAL", "Integer": "LF_INTEGER", "Boolean": "LF_BOOLEAN", "UInt64": "LF_UINT64"}
 FLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-fPIC", "-shared", "-fvisibility=hidden",

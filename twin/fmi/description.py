@@ -72,45 +72,52 @@ def _head(v: Variable, vr: int) -> dict[str, str]:
     return a
 
 
+# what differs between the two standards' root and Co-Simulation elements (the rest is common)
+ROOT = {2: ("guid", {"fmiVersion": "2.0", "numberOfEventIndicators": "0"}),
+        3: ("instantiationToken", {"fmiVersion": "3.0"})}
+CO_SIMULATION = {
+    2: {"canNotUseMemoryManagementFunctions": "true", "canBeInstantiatedOnlyOncePerProcess": "false",
+        "canGetAndSetFMUstate": "false", "canSerializeFMUstate": "false"},
+    3: {"canGetAndSetFMUState": "false", "canSerializeFMUState": "false", "providesAdjointDerivatives": "false",
+        "hasEventMode": "false"},
+}
+
+
+def _variables_and_structure(root: ET.Element, variables: Sequence[Variable], fmi_version: int,
+                             dependency_free: bool) -> None:
+    outputs = [i for i, v in enumerate(variables) if v.causality == "output"]
+    free = {"dependencies": ""} if dependency_free else {}
+    mv = ET.SubElement(root, "ModelVariables")
+    for vr, v in enumerate(variables):
+        if fmi_version == 2:
+            sv = ET.SubElement(mv, "ScalarVariable", _head(v, vr))
+            ET.SubElement(sv, "Integer" if v.type == "UInt64" else v.type, _attributes(v))
+        else:
+            ET.SubElement(mv, FMI3_TYPES[v.type], {**_head(v, vr), **_attributes(v)})
+    ms = ET.SubElement(root, "ModelStructure")
+    if fmi_version == 2:  # unknowns by their 1-based index among the variables
+        outs, init = ET.SubElement(ms, "Outputs"), ET.SubElement(ms, "InitialUnknowns")
+        for i in outputs:
+            ET.SubElement(outs, "Unknown", {"index": str(i + 1), **free})
+            ET.SubElement(init, "Unknown", index=str(i + 1))
+    else:  # by value reference
+        for i in outputs:
+            ET.SubElement(ms, "Output", {"valueReference": str(i), **free})
+        for i in outputs:
+            ET.SubElement(ms, "InitialUnknown", valueReference=str(i))
+
+
 def model_description(variables: Sequence[Variable], fmi_version: int, model_identifier: str, token: str,
                       description: str, stop_time: float, step: float, dependency_free: bool) -> bytes:
     """The XML document. ``dependency_free``: outputs do not depend directly on inputs (the plant)."""
-    outputs = [(i, v) for i, v in enumerate(variables) if v.causality == "output"]
-    tool = f"{GENERATOR} {VERSION}"
-    if fmi_version == 2:
-        root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=model_identifier, guid=token,
-                          description=description, generationTool=tool, variableNamingConvention="structured",
-                          numberOfEventIndicators="0")
-        ET.SubElement(root, "CoSimulation", modelIdentifier=model_identifier,
-                      canHandleVariableCommunicationStepSize="true", canNotUseMemoryManagementFunctions="true",
-                      canBeInstantiatedOnlyOncePerProcess="false", canGetAndSetFMUstate="false",
-                      canSerializeFMUstate="false", providesDirectionalDerivative="false")
-        _common(root, variables, stop_time, step)
-        mv = ET.SubElement(root, "ModelVariables")
-        for vr, v in enumerate(variables):
-            sv = ET.SubElement(mv, "ScalarVariable", _head(v, vr))
-            ET.SubElement(sv, "Integer" if v.type == "UInt64" else v.type, _attributes(v))
-        ms = ET.SubElement(root, "ModelStructure")
-        outs, init = ET.SubElement(ms, "Outputs"), ET.SubElement(ms, "InitialUnknowns")
-        for i, _ in outputs:
-            ET.SubElement(outs, "Unknown", {"index": str(i + 1), **({"dependencies": ""} if dependency_free else {})})
-            ET.SubElement(init, "Unknown", index=str(i + 1))
-    else:
-        root = ET.Element("fmiModelDescription", fmiVersion="3.0", modelName=model_identifier,
-                          instantiationToken=token, description=description, generationTool=tool,
-                          variableNamingConvention="structured")
-        ET.SubElement(root, "CoSimulation", modelIdentifier=model_identifier,
-                      canHandleVariableCommunicationStepSize="true", canGetAndSetFMUState="false",
-                      canSerializeFMUState="false", providesDirectionalDerivative="false",
-                      providesAdjointDerivatives="false", hasEventMode="false")
-        _common(root, variables, stop_time, step)
-        mv = ET.SubElement(root, "ModelVariables")
-        for vr, v in enumerate(variables):
-            ET.SubElement(mv, FMI3_TYPES[v.type], {**_head(v, vr), **_attributes(v)})
-        ms = ET.SubElement(root, "ModelStructure")
-        for i, _ in outputs:
-            ET.SubElement(ms, "Output", {"valueReference": str(i), **({"dependencies": ""} if dependency_free else {})})
-        for i, _ in outputs:
-            ET.SubElement(ms, "InitialUnknown", valueReference=str(i))
+    token_name, version = ROOT[fmi_version]
+    root = ET.Element("fmiModelDescription", {**version, "modelName": model_identifier, token_name: token,
+                                              "description": description, "generationTool": f"{GENERATOR} {VERSION}",
+                                              "variableNamingConvention": "structured"})
+    ET.SubElement(root, "CoSimulation", {"modelIdentifier": model_identifier,
+                                         "canHandleVariableCommunicationStepSize": "true",
+                                         "providesDirectionalDerivative": "false", **CO_SIMULATION[fmi_version]})
+    _common(root, variables, stop_time, step)
+    _variables_and_structure(root, variables, fmi_version, dependency_free)
     ET.indent(root, space="  ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8", xml_declaration=False) + b"\n"
