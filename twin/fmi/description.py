@@ -1,4 +1,6 @@
-"""modelDescription.xml of the twin's FMUs, FMI 2.0 or 3.0 Co-Simulation, from the variable table.
+"""modelDescription.xml of the twin's FMUs, FMI 2.0 or 3.0 Co-Simulation, from the variable table (laid out as the
+Modelica Reference FMUs lay theirs out: an independent ``time``, outputs listed again as initial unknowns, log
+categories for status messages).
 
 Every used unit is declared with its SI base units; parameters carry start, min and max; outputs are calculated
 (no start) and listed in the model structure as outputs and initial unknowns. The plant's outputs do not depend

@@ -1,6 +1,7 @@
 /* What the FMI 2 and FMI 3 faces share: the calling sequence of a Co-Simulation FMU without event mode, as both
  * standards' state machines give it (instantiated, initialisation mode, step mode, terminated; broken after a failed
- * initialisation), and one variable's value by value reference. Each face keeps an lf_face as its instance's first
+ * initialisation), and one variable's value by value reference. States are bits and each call names the states it
+ * is allowed in, as the Modelica Reference FMUs check their calls (src/fmi2Functions.c, MASK_*). Each face keeps an lf_face as its instance's first
  * member and adds its own callbacks and types. */
 #ifndef LF_FMI_FACE_H
 #define LF_FMI_FACE_H

@@ -1,5 +1,6 @@
 /* Where an FMU's resources are: FMI 2 passes a file URI (RFC 8089: file:///dir/, file:/dir/, file://localhost/dir/,
- * percent-encoded), FMI 3 a path. */
+ * percent-encoded), FMI 3 a path. Both URI spellings and the percent-decoding are what the Modelica Reference FMUs
+ * accept too (modelica/Reference-FMUs, Resource/model.c); this is our own implementation. */
 #ifndef LF_RESOURCE_PATH_H
 #define LF_RESOURCE_PATH_H
 
