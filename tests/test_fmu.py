@@ -164,6 +164,20 @@ def test_the_fmu_needs_no_python_of_the_twin(fmus):
     assert done.returncode == 0 and "ok" in done.stdout, done.stderr[-2000:]
 
 
+def test_a_master_in_c_runs_the_lap(fmus, reference, tmp_path):
+    """No Python at all: a minimal C master (tests/fmu/master.c) dlopens the FMU, steps it and reads lap_time."""
+    master = str(tmp_path / "master")
+    subprocess.run(["gcc", "-std=c99", "-O2", f"-I{os.path.join(os.path.dirname(fmpy.__file__), 'c-code')}",
+                    os.path.join(ROOT, "tests", "fmu", "master.c"), "-o", master, "-ldl"], check=True)
+    unzipped = fmpy.extract(fmus[CLOSED_LOOP, 2], unzipdir=str(tmp_path / "fmu"))
+    md = fmpy.read_model_description(unzipped)
+    vr = next(v.valueReference for v in md.modelVariables if v.name == "lap_time")
+    done = subprocess.run([master, unzipped, md.coSimulation.modelIdentifier, md.guid, str(vr), str(STOP), "0.005"],
+                          capture_output=True, text=True, timeout=300, env={"PATH": os.environ.get("PATH", "")})
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert float(done.stdout) == pytest.approx(reference[0].lap_time_s, rel=REL)
+
+
 def test_the_fmu_command(tmp_path):
     out = tmp_path / "loop.fmu"
     run = [PY, "-m", "twin.run", "fmu", "-o", str(out), "--kind", "closed-loop", "--fmi", "3", "--seed", "5",
