@@ -28,11 +28,20 @@ from twin.model.control import IDLE, RUN, calibration_ticks
 
 CHUNK_TICKS = 100  # controller ticks between drains of the trace ring (it holds RECORD_CAPACITY records)
 _P = ctypes.c_void_p
-lib = core.lib
-lib.lf_external_step.argtypes = [_P, _P, _P, ctypes.POINTER(ctypes.c_double)]
-lib.lf_external_step.restype = ctypes.c_int32
-lib.lf_sense_record.argtypes = [_P, _P, _P, ctypes.c_double]
-lib.lf_sense_record.restype = None
+
+
+def _library() -> ctypes.CDLL:
+    """The C core with the external-control entry points typed (an older build lacks them: say so)."""
+    lib = core.lib
+    try:
+        lib.lf_external_step.argtypes = [_P, _P, _P, ctypes.POINTER(ctypes.c_double)]
+    except AttributeError:
+        raise TwinError("twin.core._lfcore is out of date (no lf_external_step); rebuild it with pip install -e .") \
+            from None
+    lib.lf_external_step.restype = ctypes.c_int32
+    lib.lf_sense_record.argtypes = [_P, _P, _P, ctypes.c_double]
+    lib.lf_sense_record.restype = None
+    return lib
 BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
 
 
@@ -82,6 +91,7 @@ def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int =
       keep_trace: keep the per-tick trace in the result.
     """
     check_seed(seed)
+    _library()  # before any work: a stale build is one line
     model = twin.model()
     params, sensor, physics = twin.control_params(), twin.sensor_model(), twin.physics()
     values = dict(twin.space.values)
@@ -115,6 +125,7 @@ def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int =
 
 
 def _drive(model, data, sim, session, controller, judge, full_speed: float, supply: float) -> None:
+    lib = _library()
     mp, dp = _P(model._address), _P(data._address)
     sp = _P(ctypes.addressof(sim))
     h0 = ctypes.c_double()
