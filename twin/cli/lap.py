@@ -10,6 +10,8 @@ from twin.cli import options as o
 from twin.cli.output import Output
 from twin.core.closed_loop import run_laps
 from twin.core.lap import LapLimits
+from twin.errors import TwinError
+from twin.fmi import ControllerFmu, parse_map, run_controller_lap
 from twin.pil.lap import run_pil_lap
 
 HELP = "calibrate and run one closed-loop lap; print the lap time and a summary"
@@ -26,6 +28,11 @@ def add_parser(sub) -> None:
     p.add_argument("--timeout", dest="lap_timeout", type=o.number(0.0, 3600.0, lo_open=True),
                    action=o.deprecated(argparse._StoreAction, "--lap-timeout"), help=argparse.SUPPRESS)
     o.add_firmware(p, "the lap")
+    p.add_argument("--controller-fmu", metavar="C.fmu", help="a controller FMU (FMI 2 or 3 Co-Simulation) drives "
+                   "instead of the firmware, at its sample time: the line sensors' side in, motor voltages or wheel-speed "
+                   "set-points out (the firmware still calibrates)")
+    p.add_argument("--map", action="append", metavar="FMU_VARIABLE=TWIN_PORT", help="connect a variable of the "
+                   "--controller-fmu to a twin port, repeatable (default: by name)")
     o.add_json(p)
     o.add_recording(p, "the lap")
     o.add_verbose(p)
@@ -42,8 +49,16 @@ def run(args: argparse.Namespace) -> int:
     twin = o.twin_from_args(args)
     warning = o.gains_warning(args, twin)
     limits, keep = LapLimits(timeout_s=args.lap_timeout), bool(args.save or args.view)
-    mcu = None
-    if args.firmware == "c":
+    mcu = controller = None
+    if args.map and not args.controller_fmu:
+        raise TwinError("--map: maps the variables of a --controller-fmu; give one")
+    if args.controller_fmu:
+        if args.firmware != "c":
+            raise TwinError("--controller-fmu: the controller FMU drives instead of the firmware; leave out --firmware")
+        controller = ControllerFmu(args.controller_fmu, parse_map(args.map), int(twin.space.get("sensor.count")),
+                                   twin.space.get("control.dt"))
+        result = run_controller_lap(twin, controller, seed=args.seed, limits=limits, keep_trace=keep)
+    elif args.firmware == "c":
         result = run_laps(twin, [{}], seed=args.seed, limits=limits, keep_traces=keep)[0]
     else:
         result, mcu = run_pil_lap(twin, None if args.firmware == "avr" else args.firmware, seed=args.seed,
@@ -53,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
                "gains_warning": warning}
     if mcu:
         summary["mcu"] = mcu.summary()
+    if controller:
+        summary["controller"] = controller.describe()
     out.document(summary)
     if result.completed:
         out.say(f"lap completed in {result.lap_time_s:.3f} s on {twin.track.name} ({twin.track.length_m:.2f} m)")
@@ -62,8 +79,12 @@ def run(args: argparse.Namespace) -> int:
     out.say(f"cross-track error: max {result.max_cross_track_m * 1000:.1f} mm, mean {result.mean_cross_track_m * 1000:.1f} mm")
     out.say(f"energy drawn by the motors: {result.energy_j:.2f} J")
     p = result.parameters
-    out.say(f"gains: v_max={p['control.v_max']:g} m/s, K_B={p['control.kb']:g}, K_P={p['control.kp']:g}, "
-            f"K_I={p['control.ki']:g}, K_D={p['control.kd']:g}, Δt={p['control.dt'] * 1000:g} ms; seed {args.seed}")
+    if controller:
+        out.say(f"driven by {args.controller_fmu} (FMI {controller.fmi_version}, every "
+                f"{controller.sample_time * 1000:g} ms; {controller.actuation}s out); seed {args.seed}")
+    else:
+        out.say(f"gains: v_max={p['control.v_max']:g} m/s, K_B={p['control.kb']:g}, K_P={p['control.kp']:g}, "
+                f"K_I={p['control.ki']:g}, K_D={p['control.kd']:g}, Δt={p['control.dt'] * 1000:g} ms; seed {args.seed}")
     if mcu:
         out.say(f"MCU: {mcu.mcu} at {mcu.f_cpu_hz / 1e6:g} MHz ({mcu.board}): busy {mcu.busy_cycles_mean:.0f} cycles "
                 f"per tick on average, {mcu.busy_cycles_max} at most, of {mcu.period_cycles} (headroom "

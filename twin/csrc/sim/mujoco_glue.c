@@ -110,7 +110,7 @@ double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
   return height;
 }
 
-static void read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
+void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
   int32_t i;
   for (i = 0; i < s->nsensor; i++) {
     double height = lf_read_sensor(m, d, s, i);
@@ -201,25 +201,41 @@ void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, 
   s->records_written++;
 }
 
-void lf_control_callback(const mjModel *m, mjData *d) {
-  lf_sim *s = sim_of(m, d);
-  double next_tick, height0 = 0.0, mode;
-  if (!s || s->error != LF_OK || !ray_fn) return;
-  s->error = lf_check(m, s);
-  if (s->error != LF_OK) return; /* refused: Python ends the lap; nothing here reads the head's indices again */
+void lf_integrate_energy(const mjModel *m, const mjData *d, lf_sim *s) {
   if (d->time > s->last_time) {
     s->energy_j += (d->time - s->last_time) *
                    (lf_motor_power(m, d, s->actuator_left) + lf_motor_power(m, d, s->actuator_right));
     s->last_time = d->time;
   }
+}
+
+int32_t lf_tick_due(const mjData *d, const lf_sim *s) {
   /* a tick is due when time reaches phase start + ticks * dt (half a step of slack for rounding) */
-  next_tick = s->phase_start_time + (double)s->ticks * s->firmware.dt_s;
-  if (d->time < next_tick - 0.5 * s->timestep) return;
+  double next_tick = s->phase_start_time + (double)s->ticks * s->firmware.dt_s;
+  return !(d->time < next_tick - 0.5 * s->timestep);
+}
+
+int32_t lf_ready(const mjModel *m, lf_sim *s) {
+  if (s->error != LF_OK || !ray_fn) return 0;
+  s->error = lf_check(m, s);
+  return s->error == LF_OK; /* refused: its owner ends the lap; nothing here reads the head's indices again */
+}
+
+void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
+  double height0 = 0.0, mode;
+  if (!lf_ready(m, s)) return;
+  lf_integrate_energy(m, d, s);
+  if (!lf_tick_due(d, s)) return;
   mode = s->fw.mode;
-  read_sensors(m, d, s, &height0);
+  lf_read_sensors(m, d, s, &height0);
   lf_step(&s->fw, &s->firmware, s->raw);
   d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
   s->ticks++;
   lf_write_record(m, d, s, mode, height0);
+}
+
+void lf_control_callback(const mjModel *m, mjData *d) {
+  lf_sim *s = sim_of(m, d);
+  if (s) lf_loop(m, d, s);
 }

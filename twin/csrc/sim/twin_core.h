@@ -109,6 +109,14 @@ int32_t lf_has_ray(void);                                    /* lf_set_ray has b
 double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i);
 void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0);
 double lf_motor_power(const mjModel *m, const mjData *d, int32_t a); /* electrical power u i, >= 0 [W] */
+/* The callback's work on a head its caller owns (an FMU steps its own head between mj_step1 and mj_step2, so that
+ * a callback installed by the host process never sees it): check, energy, and at a control tick sensors, firmware,
+ * motors and a trace record. lf_control_callback is this on the head in d->userdata. */
+void lf_loop(const mjModel *m, mjData *d, lf_sim *s);
+int32_t lf_ready(const mjModel *m, lf_sim *s);  /* lf_set_ray was called and the head fits the model (else error) */
+void lf_integrate_energy(const mjModel *m, const mjData *d, lf_sim *s); /* motors' energy up to d->time */
+int32_t lf_tick_due(const mjData *d, const lf_sim *s);                  /* a control tick is due at d->time */
+void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0); /* every sensor's raw reading */
 #endif
 
 #endif

@@ -1,0 +1,162 @@
+/* A controller FMU for the tests (FMI 2.0 Co-Simulation), built by tests/fmu_builders.py with gcc against fmpy's FMI
+ * headers: the firmware's own control law (Eqs. 10-11: lf_control and lf_wheel_duties of
+ * twin/csrc/firmware/line_follower.c) on the line angle (or, with CTL_INPUT_POSITION, the readLine position), driving
+ * motor voltages (or, with CTL_OUTPUT_SPEEDS, wheel-speed set-points). In the twin's loop it must drive exactly as
+ * the firmware does. Value references: 0 the input, 1 and 2 the left and right outputs, 3 k_p (a tunable parameter).
+ * controller_config.h (written by the test) gives CTL_GUID and the firmware's parameters. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "controller_config.h"
+#include "fmi2Functions.h"
+#include "firmware/line_follower.h"
+
+typedef struct {
+  lf_state s;
+  lf_params p;
+  double in, out[2];
+} ctl;
+
+static void fill(ctl *c) {
+  static const lf_params p = CTL_PARAMS;
+  memset(c, 0, sizeof(*c));
+  c->p = p;
+  lf_reset(&c->s, LF_RUN);
+}
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cat[]) {
+  (void)c, (void)on, (void)n, (void)cat;
+  return fmi2OK;
+}
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String res,
+                              const fmi2CallbackFunctions *f, fmi2Boolean visible, fmi2Boolean logging) {
+  ctl *c;
+  (void)name, (void)res, (void)f, (void)visible, (void)logging;
+  if (type != fmi2CoSimulation || strcmp(guid, CTL_GUID) != 0) return 0;
+  c = malloc(sizeof(ctl));
+  if (c) fill(c);
+  return c;
+}
+void fmi2FreeInstance(fmi2Component c) { free(c); }
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean a, fmi2Real b, fmi2Real d, fmi2Boolean e, fmi2Real g) {
+  (void)c, (void)a, (void)b, (void)d, (void)e, (void)g;
+  return fmi2OK;
+}
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
+fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
+fmi2Status fmi2Reset(fmi2Component c) { fill(c); return fmi2OK; }
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
+  ctl *k = c;
+  size_t i;
+  for (i = 0; i < n; i++) {
+    if (vr[i] == 0) v[i] = k->in;
+    else if (vr[i] == 1 || vr[i] == 2) v[i] = k->out[vr[i] - 1];
+    else if (vr[i] == 3) v[i] = k->p.k_p;
+    else return fmi2Error;
+  }
+  return fmi2OK;
+}
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
+  ctl *k = c;
+  size_t i;
+  for (i = 0; i < n; i++) {
+    if (vr[i] == 0) k->in = v[i];
+    else if (vr[i] == 3) k->p.k_p = v[i];
+    else return fmi2Error;
+  }
+  return fmi2OK;
+}
+
+/* One control period: the firmware's RUN branch after readLine (lf_step), on the input. */
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no) {
+  ctl *k = c;
+  lf_real left, right, e;
+  (void)t, (void)h, (void)no;
+#ifdef CTL_INPUT_POSITION
+  e = lf_line_angle((int32_t)k->in, k->p.count, k->p.pitch_m, k->p.sensor_distance_m);
+#else
+  e = k->in;
+#endif
+  lf_control(&k->s, &k->p, e);
+  lf_wheel_duties(&k->p, k->s.v, k->s.omega, &left, &right);
+  if (k->s.tick < LF_TICKS_MAX) k->s.tick++;
+#ifdef CTL_OUTPUT_SPEEDS
+  k->out[0] = left * k->p.wheel_speed_max, k->out[1] = right * k->p.wheel_speed_max;
+#else
+  k->out[0] = left * CTL_SUPPLY_VOLTAGE, k->out[1] = right * CTL_SUPPLY_VOLTAGE;
+#endif
+  return fmi2OK;
+}
+
+/* the rest of the standard: present, not supported */
+#define NO return fmi2Error
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference r[], size_t n, fmi2Integer v[]) {
+  (void)c, (void)r, (void)v;
+  return n ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference r[], size_t n, fmi2Boolean v[]) {
+  (void)c, (void)r, (void)v;
+  return n ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference r[], size_t n, fmi2String v[]) {
+  (void)c, (void)r, (void)v;
+  return n ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference r[], size_t n, const fmi2Integer v[]) {
+  (void)c, (void)r, (void)v;
+  return n ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference r[], size_t n, const fmi2Boolean v[]) {
+  (void)c, (void)r, (void)v;
+  return n ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference r[], size_t n, const fmi2String v[]) {
+  (void)c, (void)r, (void)v;
+  return n ? fmi2Error : fmi2OK;
+}
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) { (void)c, (void)s; NO; }
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) { (void)c, (void)s; NO; }
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *s) { (void)c, (void)s; NO; }
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *n) { (void)c, (void)s, (void)n; NO; }
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t n) {
+  (void)c, (void)s, (void)b, (void)n;
+  NO;
+}
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte b[], size_t n, fmi2FMUstate *s) {
+  (void)c, (void)s, (void)b, (void)n;
+  NO;
+}
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
+                                        const fmi2ValueReference z[], size_t nz, const fmi2Real dz[], fmi2Real du[]) {
+  (void)c, (void)u, (void)nu, (void)z, (void)nz, (void)dz, (void)du;
+  NO;
+}
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference r[], size_t n, const fmi2Integer o[],
+                                       const fmi2Real v[]) {
+  (void)c, (void)r, (void)n, (void)o, (void)v;
+  NO;
+}
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference r[], size_t n, const fmi2Integer o[],
+                                        fmi2Real v[]) {
+  (void)c, (void)r, (void)n, (void)o, (void)v;
+  NO;
+}
+fmi2Status fmi2CancelStep(fmi2Component c) { (void)c; NO; }
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *v) { (void)c, (void)s, (void)v; NO; }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *v) { (void)c, (void)s, (void)v; NO; }
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *v) {
+  (void)c, (void)s, (void)v;
+  NO;
+}
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *v) {
+  (void)c, (void)s, (void)v;
+  NO;
+}
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *v) {
+  (void)c, (void)s, (void)v;
+  NO;
+}

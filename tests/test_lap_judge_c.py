@@ -1,0 +1,113 @@
+"""The lap judge in C (twin/csrc/sim/lap_judge.c, the FMU's) against its Python reference (twin.core.lap.LapJudge):
+fed the same trace, a real lap and laps broken on purpose, they reach the same outcome at the same record."""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from ctypes import c_double, c_int32, c_int64
+
+import numpy as np
+import pytest
+
+from twin.core import COL, DigitalTwin, LapJudge, LapLimits, run_laps
+from twin.core import native as core
+from twin.core.lap import COMPLETED, DIVERGED, LINE_LOST, OFF_TRACK, TIMEOUT
+
+STATUS = ("running", COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED, "calibration", "refused")  # enum lf_lap_status
+
+
+class Limits(ctypes.Structure):
+    _fields_ = [(n, c_double) for n in ("max_cross_track_m", "max_progress_jump_m", "max_line_lost_s", "timeout_s")]
+
+
+class Judge(ctypes.Structure):
+    """``lf_judge``."""
+
+    _fields_ = [("limits", Limits), ("length_m", c_double), ("status", c_int32), ("started", c_int32),
+                ("records", c_int64)] + [(n, c_double) for n in (
+                    "u_last", "s_last", "t_seen", "prev_t", "prev_u", "prev_energy", "abs_sum", "abs_max", "end_t",
+                    "end_u", "end_energy")]
+
+
+lib = core.lib
+lib.lf_judge_start.argtypes = [ctypes.POINTER(Judge), c_double, ctypes.POINTER(Limits)]
+lib.lf_judge_feed.argtypes = [ctypes.POINTER(Judge), ctypes.POINTER(c_double)]
+lib.lf_judge_feed.restype = c_int32
+
+
+@pytest.fixture(scope="module")
+def twin():
+    return DigitalTwin()
+
+
+@pytest.fixture(scope="module")
+def trace(twin):
+    lap = run_laps(twin, [{}], seed=0)[0]
+    assert lap.completed
+    return lap.trace.records
+
+
+def c_judge(records: np.ndarray, length: float, limits: LapLimits) -> Judge:
+    j = Judge()
+    lim = Limits(limits.max_cross_track_m, limits.max_progress_jump_m, limits.max_line_lost_s, limits.timeout_s)
+    lib.lf_judge_start(ctypes.byref(j), length, ctypes.byref(lim))
+    rows = np.ascontiguousarray(records, dtype=np.float64)
+    for row in rows:
+        if lib.lf_judge_feed(ctypes.byref(j), row.ctypes.data_as(ctypes.POINTER(c_double))):
+            break
+    return j
+
+
+def py_judge(twin, records: np.ndarray, limits: LapLimits, chunk: int) -> LapJudge:
+    j = LapJudge(twin.track, limits, keep_trace=False)
+    for k in range(0, len(records), chunk):
+        j.feed(records[k: k + chunk])
+    return j
+
+
+def assert_same(twin, records, limits=LapLimits(), code=None):
+    c = c_judge(records, twin.track.length_m, limits)
+    for chunk in (1, 37, len(records)):
+        py = py_judge(twin, records, limits, chunk)
+        if py.outcome is None:  # still running at the end of the trace: the same progress so far
+            assert c.status == 0 and code is None and c.u_last == pytest.approx(py.u_last, rel=1e-12)
+            continue
+        p_code, _, t, u, energy = py.outcome
+        assert STATUS[c.status] == p_code == (code or p_code)
+        # progress is summed record by record in C, chunk by chunk in numpy: equal to rounding
+        assert c.end_t == pytest.approx(t, rel=1e-13, abs=1e-13)
+        assert c.end_u == pytest.approx(u, rel=1e-12, abs=1e-12)
+        assert c.end_energy == pytest.approx(energy, rel=1e-13, abs=1e-13)
+        assert c.records == py.n and c.abs_max == py.abs_max and c.abs_sum == py.abs_sum
+    return c
+
+
+def test_a_real_lap(twin, trace):
+    c = assert_same(twin, trace, code=COMPLETED)
+    assert c.end_u == twin.track.length_m
+
+
+@pytest.mark.parametrize("case", ["off_track", "jump", "line_lost", "diverged", "tie", "timeout", "wrap_start"])
+def test_a_lap_broken_on_purpose(twin, trace, case):
+    rec = trace.copy()
+    k = len(rec) // 3
+    limits = LapLimits()
+    if case == "off_track":
+        rec[k, COL["offset_m"]] = -0.2
+    elif case == "jump":
+        rec[k:, COL["progress_m"]] = np.mod(rec[k:, COL["progress_m"]] + 0.3, twin.track.length_m)
+    elif case == "line_lost":
+        rec[k:, COL["line_seen"]] = 0.0
+    elif case == "diverged":
+        rec[k, COL["x_m"]] = math.nan
+    elif case == "tie":  # two events at one record: the one listed first wins, in both
+        rec[k, COL["x_m"]] = math.nan
+        rec[k, COL["offset_m"]] = 0.5
+    elif case == "timeout":
+        limits = LapLimits(timeout_s=4.0)
+    elif case == "wrap_start":  # a start just behind 0: progress unwraps below zero (the trace ends short of a lap)
+        rec[:, COL["progress_m"]] = np.mod(rec[:, COL["progress_m"]] - 0.05, twin.track.length_m)
+    expected = {"off_track": OFF_TRACK, "jump": OFF_TRACK, "line_lost": LINE_LOST, "diverged": DIVERGED,
+                "tie": DIVERGED, "timeout": TIMEOUT, "wrap_start": None}[case]
+    assert_same(twin, rec, limits, expected)

@@ -1,0 +1,25 @@
+/* A controller outside the firmware; see external_control.h. */
+#include "external_control.h"
+
+double lf_sense(const mjModel *m, const mjData *d, lf_sim *s) {
+  double height0 = 0.0;
+  lf_read_sensors(m, d, s, &height0);
+  lf_read_calibrated(&s->fw, s->raw, s->fw.value, s->nsensor);
+  s->fw.position = lf_read_line(&s->fw, s->fw.value, s->nsensor);
+  s->fw.e = lf_line_angle(s->fw.position, s->nsensor, s->firmware.pitch_m, s->firmware.sensor_distance_m);
+  return height0;
+}
+
+void lf_sense_record(const mjModel *m, const mjData *d, lf_sim *s, double height0) {
+  s->ticks++;
+  if (s->fw.tick < LF_TICKS_MAX) s->fw.tick++;
+  lf_write_record(m, d, s, s->fw.mode, height0);
+}
+
+int32_t lf_external_step(const mjModel *m, mjData *d, lf_sim *s, double *height0) {
+  if (!lf_ready(m, s)) return -1;
+  lf_integrate_energy(m, d, s);
+  if (!lf_tick_due(d, s)) return 0;
+  *height0 = lf_sense(m, d, s);
+  return 1;
+}

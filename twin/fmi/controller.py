@@ -1,0 +1,218 @@
+"""A third-party controller FMU in the twin's loop: opened with fmpy, checked, its variables mapped to the twin's ports.
+
+The FMU must be FMI 2.0 or 3.0 Co-Simulation with a binary for this platform; anything else is refused in one line
+before the lap (not a zip, no modelDescription.xml, FMI 1.0, Model Exchange only, no binary here). Its inputs take
+the twin's sensor side (:data:`SENSE_PORTS`: the readLine position, Eq. 9's angle, the readings, the encoders); its
+outputs drive the motors (:data:`DRIVE_PORTS`: both voltages, or both wheel-speed set-points). Each variable maps by
+its name (or a common spelling of it, :func:`default_mapping`) unless ``--map FMU_VARIABLE=TWIN_PORT`` says otherwise;
+every input of the FMU must map, and one pair of outputs must. The controller runs at its DefaultExperiment step
+size (else the twin's control.dt), stepped from t to t + T on the inputs read at t; its outputs drive the motors
+from t on, as the firmware's do.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+import tempfile
+import zipfile
+from typing import Mapping
+
+from twin.errors import TwinError
+from twin.fmi.session import ControllerSession
+
+log = logging.getLogger(__name__)
+
+VOLTAGE, SETPOINT = ("voltage_left", "voltage_right"), ("wheel_speed_setpoint_left", "wheel_speed_setpoint_right")
+DRIVE_PORTS = {
+    "voltage_left": "left motor voltage [V]", "voltage_right": "right motor voltage [V]",
+    "wheel_speed_setpoint_left": "left wheel speed set-point [rad/s] (PWM duty = set-point / control.full_speed)",
+    "wheel_speed_setpoint_right": "right wheel speed set-point [rad/s] (PWM duty = set-point / control.full_speed)",
+}
+# the twin's own names, then other common spellings (compared lower-case, letters and digits only)
+ALIASES = {
+    "line_position": ("position", "linepos", "readline"),
+    "line_angle": ("e", "angle", "lineerror", "error", "bearing"),
+    "line_seen": ("online", "seen"),
+    "wheel_speed_left": ("leftwheelspeed", "omegaleft", "speedleft", "encoderleft"),
+    "wheel_speed_right": ("rightwheelspeed", "omegaright", "speedright", "encoderright"),
+    "voltage_left": ("leftvoltage", "uleft", "ul", "motorleft", "leftmotor"),
+    "voltage_right": ("rightvoltage", "uright", "ur", "motorright", "rightmotor"),
+    "wheel_speed_setpoint_left": ("setpointleft", "leftsetpoint", "wheelspeedleftsetpoint"),
+    "wheel_speed_setpoint_right": ("setpointright", "rightsetpoint", "wheelspeedrightsetpoint"),
+}
+FMI2_PLATFORM, FMI3_PLATFORM = "linux64", "x86_64-linux"
+REAL_TYPES = ("Real", "Float64", "Float32")
+INTEGER_TYPES = ("Integer", "Int32", "Int64", "Int16", "Int8", "UInt8", "UInt16", "UInt32", "UInt64")
+
+
+def sense_ports(count: int) -> dict[str, str]:
+    """The twin's ports a controller may read, with what each is."""
+    ports = {
+        "line_position": f"readLine position, 0 (sensor 1) to {(count - 1) * 1000} (sensor {count})",
+        "line_angle": "Eq. 9 line angle [rad], > 0 to the left",
+        "line_seen": "1 if a calibrated reading is above 200",
+        "wheel_speed_left": "left wheel speed [rad/s] (encoder)", "wheel_speed_right": "right wheel speed [rad/s]",
+    }
+    for i in range(1, count + 1):
+        ports[f"sensor.calibrated[{i}]"] = f"sensor {i}, calibrated 0..1000 (Eq. 8)"
+        ports[f"sensor.raw[{i}]"] = f"sensor {i}, raw RC reading [us]"
+    return ports
+
+
+SENSE_PORTS = sense_ports(8)  # for the default 8-sensor array
+
+
+def _norm(name: str) -> str:
+    return re.sub(r"[^a-z0-9]", "", name.lower())
+
+
+def _aliases(port: str) -> set[str]:
+    out = {_norm(port)} | set(ALIASES.get(port, ()))
+    m = re.fullmatch(r"sensor\.(calibrated|raw)\[(\d+)\]", port)
+    if m:
+        kind, i = m.groups()
+        out |= {f"{kind}{i}", f"sensor{kind}{i}"} | ({f"sensor{i}", f"s{i}"} if kind == "calibrated" else set())
+    return out
+
+
+def default_mapping(inputs: list[str], outputs: list[str], count: int) -> tuple[dict[str, str], dict[str, str]]:
+    """({FMU input: twin port}, {FMU output: twin port}) for the variables whose names say which port they are."""
+    def match(names, ports):
+        table = {alias: port for port in ports for alias in _aliases(port)}
+        return {n: table[_norm(n)] for n in names if _norm(n) in table}
+    return match(inputs, sense_ports(count)), match(outputs, DRIVE_PORTS)
+
+
+def parse_map(items: list[str] | None) -> dict[str, str]:
+    """``["x=line_angle", ...]`` (``--map``) → {"x": "line_angle"}; the names are checked against the FMU later."""
+    out: dict[str, str] = {}
+    for item in items or ():
+        name, sep, port = item.partition("=")
+        if not sep or not name.strip() or not port.strip():
+            raise TwinError(f"--map {item!r}: expected FMU_VARIABLE=TWIN_PORT, e.g. u_left=voltage_left")
+        if name.strip() in out:
+            raise TwinError(f"--map {item!r}: {name.strip()} is mapped twice")
+        out[name.strip()] = port.strip()
+    return out
+
+
+def _fail(path: str, why: str) -> TwinError:
+    return TwinError(f"--controller-fmu {path}: {why}")
+
+
+def read_controller(path: str):
+    """fmpy's model description of a controller FMU that this platform can run, or TwinError in one line."""
+    if not os.path.isfile(path):
+        raise _fail(path, "no such file")
+    if not zipfile.is_zipfile(path):
+        raise _fail(path, "not an FMU (not a zip archive)")
+    from fmpy import read_model_description  # the loader (a dependency); imported when an FMU is used
+    try:
+        with zipfile.ZipFile(path) as z:
+            names = set(z.namelist())
+    except (OSError, zipfile.BadZipFile) as e:
+        raise _fail(path, f"not an FMU ({e})") from None
+    if "modelDescription.xml" not in names:
+        raise _fail(path, "not an FMU (no modelDescription.xml in the archive)")
+    with zipfile.ZipFile(path) as z, z.open("modelDescription.xml") as f:
+        declared = re.search(rb"<fmiModelDescription[^>]*?\sfmiVersion\s*=\s*[\"']([^\"']*)", f.read(1 << 16))
+    if declared and not declared.group(1).startswith((b"2.", b"3.")):
+        raise _fail(path, f"FMI {declared.group(1).decode(errors='replace')} is not supported: the twin runs FMI 2.0 "
+                    "or 3.0 Co-Simulation FMUs")
+    try:
+        md = read_model_description(path, validate=False)
+    except Exception as e:  # fmpy raises plain exceptions for broken XML
+        raise _fail(path, f"its modelDescription.xml cannot be read ({' '.join(str(e).split())[:200]})") from None
+    version = str(md.fmiVersion)
+    if not version.startswith(("2.", "3.")):
+        raise _fail(path, f"FMI {version} is not supported: the twin runs FMI 2.0 or 3.0 Co-Simulation FMUs")
+    if md.coSimulation is None:
+        raise _fail(path, "it is for Model Exchange only: the twin runs Co-Simulation FMUs (export it for co-simulation)")
+    folder = FMI2_PLATFORM if version.startswith("2.") else FMI3_PLATFORM
+    binary = f"binaries/{folder}/{md.coSimulation.modelIdentifier}.so"
+    if binary not in names:
+        have = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2})
+        raise _fail(path, f"it has no binary for this platform ({binary}; it has: {', '.join(have) or 'none'})")
+    return md
+
+
+def _variables(md) -> tuple[dict, dict]:
+    ins = {v.name: v for v in md.modelVariables if v.causality == "input"}
+    outs = {v.name: v for v in md.modelVariables if v.causality == "output"}
+    return ins, outs
+
+
+def resolve_mapping(path: str, md, overrides: Mapping[str, str], count: int) -> tuple[dict[str, str], dict[str, str]]:
+    """({FMU input: twin port}, {twin drive port: FMU output}), or TwinError in one line listing the FMU's variables."""
+    ins, outs = _variables(md)
+    sense, drive = default_mapping(list(ins), list(outs), count)
+    ports = sense_ports(count)
+    for name, port in overrides.items():
+        if name in ins and port in ports:
+            sense[name] = port
+        elif name in outs and port in DRIVE_PORTS:
+            drive = {n: p for n, p in drive.items() if p != port}
+            drive[name] = port
+        elif name not in ins and name not in outs:
+            raise _fail(path, f"--map {name}={port}: the FMU has no input or output {name!r} "
+                        f"({_listing(ins, outs)})")
+        else:
+            side = ports if name in ins else DRIVE_PORTS
+            raise _fail(path, f"--map {name}={port}: {port!r} is not a twin port for an FMU "
+                        f"{'input' if name in ins else 'output'} (choose from {', '.join(side)})")
+    for name, v in list(ins.items()):
+        if name in sense and v.type not in REAL_TYPES + INTEGER_TYPES + ("Boolean",):
+            raise _fail(path, f"input {name} is of type {v.type}, which no twin port feeds")
+    unmapped = [n for n in ins if n not in sense]
+    by_port = {p: n for n, p in drive.items()}
+    pairs = [pair for pair in (VOLTAGE, SETPOINT) if all(p in by_port for p in pair)]
+    if unmapped or len(pairs) != 1:
+        why = (f"no twin port for its input{'s' if len(unmapped) > 1 else ''} {', '.join(unmapped)}" if unmapped else
+               "two pairs of motor outputs (voltages and set-points): map one pair" if pairs else
+               "no outputs for both motors (voltage_left/right or wheel_speed_setpoint_left/right)")
+        raise _fail(path, f"the mapping is incomplete: {why} ({_listing(ins, outs)}); map with --map "
+                    f"FMU_VARIABLE=TWIN_PORT (twin ports: in {', '.join(p for p in ports if '[' not in p)}, "
+                    f"sensor.calibrated[i], sensor.raw[i]; out {', '.join(DRIVE_PORTS)})")
+    for port in pairs[0]:
+        if outs[by_port[port]].type not in REAL_TYPES + INTEGER_TYPES:
+            raise _fail(path, f"output {by_port[port]} is of type {outs[by_port[port]].type}, not a number")
+    return sense, {p: by_port[p] for p in pairs[0]}
+
+
+def _listing(ins: dict, outs: dict) -> str:
+    return (f"its inputs: {', '.join(ins) or 'none'}; its outputs: {', '.join(outs) or 'none'}")
+
+
+class ControllerFmu:
+    """A controller FMU, checked and mapped (nothing runs until :meth:`start`).
+
+    Args:
+      path: the .fmu file.
+      mapping: {FMU variable: twin port} that override the mapping by name.
+      count: sensors of the twin's array (which sensor ports exist).
+      control_dt: the twin's control period [s], the sample time if the FMU's DefaultExperiment has no stepSize.
+    """
+
+    def __init__(self, path: str, mapping: Mapping[str, str] | None = None, count: int = 8, control_dt: float = 0.005):
+        self.path = path
+        self.md = read_controller(path)
+        self.fmi_version = int(str(self.md.fmiVersion)[0])
+        self.sense, self.drive = resolve_mapping(path, self.md, mapping or {}, count)
+        self.actuation = "voltage" if "voltage_left" in self.drive else "setpoint"
+        step = self.md.defaultExperiment.stepSize if self.md.defaultExperiment else None
+        self.sample_time = float(step) if step not in (None, "") else float(control_dt)
+        if not (self.sample_time > 0 and self.sample_time <= 1.0):
+            raise _fail(path, f"its sample time {self.sample_time:g} s is outside (0, 1] s")
+        self._session = None
+
+    def describe(self) -> dict:
+        """What runs, for --json: the FMU, its version, sample time and the mapping used."""
+        return {"fmu": os.path.abspath(self.path), "fmi_version": self.fmi_version, "sample_time_s": self.sample_time,
+                "model_name": self.md.modelName, "inputs": dict(self.sense),
+                "outputs": {self.drive[p]: p for p in self.drive}, "actuation": self.actuation}
+
+    def start(self) -> ControllerSession:
+        """Instantiate and initialise the FMU at time 0; the session steps it (close it when done)."""
+        return ControllerSession(self)

@@ -1,0 +1,163 @@
+"""A lap with a controller FMU in the twin's loop.
+
+The phases are the lap's (:mod:`twin.core.closed_loop`): the robot's own firmware calibrates by turning in place over
+the start line (the sensor library's procedure, the same turn bit for bit), the robot is put back on the start line
+with that calibration, and then the controller FMU drives. Each physics step runs as ``mj_step`` runs the control
+callback (``mj_step1``, the loop's work, ``mj_step2``); at each of the controller's sample times the C core reads the
+sensors and runs the firmware's sensor side (``lf_external_step``: Eqs. 8–9), the FMU steps from t to t + T on those
+values, and its outputs drive the motors from t on. The head of this loop carries no mark, so the control callback
+leaves it alone. The lap is judged as every lap is (:class:`twin.core.lap.LapJudge`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import mujoco
+import numpy as np
+
+from mjcf.world import START_KEY
+from twin.core import native as core
+from twin.core.calibration import range_too_small, turn_too_long
+from twin.core.closed_loop import check_seed, setup, start_phase
+from twin.core.digital_twin import DigitalTwin
+from twin.core.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
+from twin.errors import TwinError
+from twin.fmi.controller import ControllerFmu
+from twin.model.control import IDLE, RUN, calibration_ticks
+
+CHUNK_TICKS = 100  # controller ticks between drains of the trace ring (it holds RECORD_CAPACITY records)
+_P = ctypes.c_void_p
+
+
+def _library() -> ctypes.CDLL:
+    """The C core with the external-control entry points typed (an older build lacks them: say so)."""
+    lib = core.lib
+    try:
+        lib.lf_external_step.argtypes = [_P, _P, _P, ctypes.POINTER(ctypes.c_double)]
+    except AttributeError:
+        raise TwinError("twin.core._lfcore is out of date (no lf_external_step); rebuild it with pip install -e .") \
+            from None
+    lib.lf_external_step.restype = ctypes.c_int32
+    lib.lf_sense_record.argtypes = [_P, _P, _P, ctypes.c_double]
+    lib.lf_sense_record.restype = None
+    return lib
+BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+def _diverged(data: mujoco.MjData) -> bool:
+    """MuJoCo found a bad state (and reset the data, head included), or the state is not finite."""
+    return any(data.warning[w].number for w in BAD) or not np.isfinite(data.qpos).all()
+
+
+def _readers(sim: core.Sim, data: mujoco.MjData) -> dict:
+    """The sensor-side ports as functions of the head and data at a tick."""
+    fw = sim.fw
+    out = {"line_position": lambda: fw.position, "line_angle": lambda: fw.e, "line_seen": lambda: fw.line_seen,
+           "wheel_speed_left": lambda: data.qvel[sim.dof_left], "wheel_speed_right": lambda: data.qvel[sim.dof_right]}
+    for i in range(sim.nsensor):
+        out[f"sensor.calibrated[{i + 1}]"] = lambda i=i: fw.value[i]
+        out[f"sensor.raw[{i + 1}]"] = lambda i=i: sim.raw[i]
+    return out
+
+
+def _calibrate(twin, model, data, params, sensor, physics, seed, judge) -> tuple | None:
+    """The firmware's calibration turn from the start line: (min, max, generator state), or None if it failed."""
+    mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
+    sim = setup(data.userdata, model, twin, params, sensor, seed, physics)
+    steps = round(params.dt_s / physics.timestep)
+    mujoco.mj_step(model, data, (calibration_ticks(params) + 2) * steps)
+    core.flush_mujoco_log()
+    if _diverged(data):
+        judge.fail(DIVERGED, "the physics produced a non-finite state during the calibration turn", data.time, 0.0)
+        return None
+    if why := core.refusal(sim):
+        judge.fail(REFUSED, why, data.time, 0.0)
+        return None
+    if sim.fw.mode != IDLE:
+        raise TwinError(f"calibration did not finish in {(calibration_ticks(params) + 2) * steps} steps")
+    return tuple(sim.fw.cal_min[: sim.nsensor]), tuple(sim.fw.cal_max[: sim.nsensor]), int(sim.rng)
+
+
+def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int = 0, limits: LapLimits = LapLimits(),
+                       keep_trace: bool = True) -> LapResult:
+    """Calibrate, then one lap driven by ``controller``; the same seed gives the same lap, bit for bit.
+
+    Args:
+      twin: the robot on its track, with its values.
+      controller: the checked and mapped controller FMU.
+      seed: sensor-noise seed in [0, 2**64 − 1].
+      limits: failure thresholds.
+      keep_trace: keep the per-tick trace in the result.
+    """
+    check_seed(seed)
+    _library()  # before any work: a stale build is one line
+    model = twin.model()
+    params, sensor, physics = twin.control_params(), twin.sensor_model(), twin.physics()
+    values = dict(twin.space.values)
+    judge = LapJudge(twin.track, limits, keep_trace)
+    if controller.sample_time < physics.timestep:
+        raise TwinError(f"--controller-fmu {controller.path}: its sample time {controller.sample_time:g} s is "
+                        f"shorter than the physics step ({physics.timestep:g} s)")
+    if why := turn_too_long(params, limits):
+        judge.fail(CALIBRATION, why, 0.0, 0.0)
+        return judge.result(params.count, [], [], values)
+    core.install_callback()
+    data = mujoco.MjData(model)
+    cal = _calibrate(twin, model, data, params, sensor, physics, seed, judge)
+    if cal is None:
+        return judge.result(params.count, [], [], values)
+    lo, hi, rng = cal
+    mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
+    sim = setup(data.userdata, model, twin, params, sensor, seed, physics)
+    for j, (a, b) in enumerate(zip(lo, hi)):
+        sim.fw.cal_min[j], sim.fw.cal_max[j] = a, b
+    sim.rng = rng
+    if why := range_too_small(twin, params, sensor, lo, hi, limits):
+        judge.fail(CALIBRATION, why, 0.0, 0.0)
+        return judge.result(params.count, lo, hi, values)
+    start_phase(sim, RUN)
+    sim.magic = 0.0  # this loop owns the head: the control callback leaves it alone
+    sim.firmware.dt_s = controller.sample_time  # ticks at the controller's sample times
+    with controller.start() as session:
+        _drive(model, data, sim, session, controller, judge, params.wheel_speed_max, physics.supply_voltage)
+    return judge.result(params.count, lo, hi, values)
+
+
+def _drive(model, data, sim, session, controller, judge, full_speed: float, supply: float) -> None:
+    lib = _library()
+    mp, dp = _P(model._address), _P(data._address)
+    sp = _P(ctypes.addressof(sim))
+    h0 = ctypes.c_double()
+    period = controller.sample_time
+    readers = _readers(sim, data)
+    used = [(port, readers[port]) for port in controller.sense.values()]
+    setpoint = controller.actuation == "setpoint"
+    left_id, right_id = sim.actuator_left, sim.actuator_right
+    chunk = CHUNK_TICKS * max(1, int(np.ceil(period / model.opt.timestep - 1e-9)))
+    tick = consumed = 0
+    while not judge.done:
+        refused = False
+        for _ in range(chunk):
+            mujoco.mj_step1(model, data)
+            due = lib.lf_external_step(mp, dp, sp, ctypes.byref(h0))
+            if due < 0:
+                refused = True
+                break
+            if due:
+                left, right = session.step(tick * period, period, {port: read() for port, read in used})
+                if setpoint:  # PWM duty of the no-load speed, as the firmware maps wheel speeds
+                    left, right = (float(np.clip(w / full_speed, -1.0, 1.0)) * supply for w in (left, right))
+                data.ctrl[left_id], data.ctrl[right_id] = left, right
+                lib.lf_sense_record(mp, dp, sp, h0.value)
+                tick += 1
+            mujoco.mj_step2(model, data)
+        core.flush_mujoco_log()
+        if _diverged(data):
+            judge.fail(DIVERGED, "the physics produced a non-finite state", data.time, 0.0)
+            return
+        if refused:
+            judge.fail(REFUSED, core.refusal(sim) or "the C loop refused the simulation", data.time, 0.0)
+            return
+        judge.feed(core.records_since(data.userdata, sim, consumed))
+        consumed = sim.records_written

@@ -1,0 +1,139 @@
+"""One run of a controller FMU through fmpy: extracted to a temporary folder, instantiated and initialised at time 0,
+stepped tick by tick, freed and removed at :meth:`ControllerSession.close`. Its log goes to the
+``twin.fmi.controller`` logger; a failed call becomes one TwinError line with the FMU's last message."""
+
+from __future__ import annotations
+
+import collections
+import ctypes
+import logging
+import tempfile
+from typing import Mapping
+
+from twin.errors import TwinError
+
+log = logging.getLogger("twin.fmi.controller")
+STATUS = ("ok", "warning", "discard", "error", "fatal", "pending")
+LEVEL = (logging.DEBUG, logging.WARNING, logging.WARNING, logging.ERROR, logging.ERROR, logging.INFO)
+_SETTERS = {2: {"Real": "setReal", "Integer": "setInteger", "Boolean": "setBoolean"},
+            3: {"Float64": "setFloat64", "Float32": "setFloat32", "Int32": "setInt32", "Int64": "setInt64",
+                "Int16": "setInt16", "Int8": "setInt8", "UInt8": "setUInt8", "UInt16": "setUInt16",
+                "UInt32": "setUInt32", "UInt64": "setUInt64", "Boolean": "setBoolean"}}
+
+
+def _text(b) -> str:
+    return b.decode("utf-8", "replace") if isinstance(b, bytes) else str(b)
+
+
+class ControllerSession:
+    """A running controller FMU (see :class:`twin.fmi.controller.ControllerFmu`)."""
+
+    def __init__(self, controller):
+        from fmpy import extract
+        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi3 import FMU3Slave
+
+        self.controller, self.path, self.version = controller, controller.path, controller.fmi_version
+        self.messages: collections.deque[str] = collections.deque(maxlen=3)
+        self.fmu = None
+        self._tmp = tempfile.TemporaryDirectory(prefix="twin-controller-")
+        md = controller.md
+        try:
+            folder = extract(self.path, unzipdir=self._tmp.name)
+            cls, token = (FMU2Slave, md.guid) if self.version == 2 else (FMU3Slave, md.instantiationToken)
+            self.fmu = cls(guid=token, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
+                           instanceName="controller")
+            if self.version == 2:
+                self.fmu.instantiate(callbacks=self._fmi2_callbacks())
+                self.fmu.setupExperiment(startTime=0.0)
+                self.fmu.enterInitializationMode()
+            else:
+                self.fmu.instantiate(logMessage=self._log3)
+                self.fmu.enterInitializationMode(startTime=0.0)
+            self.fmu.exitInitializationMode()
+        except Exception as e:
+            self.close()
+            raise self._error("it failed to load or initialise", e) from None
+        by_name = {v.name: v for v in md.modelVariables}
+        self._inputs = []  # (setter, [vr], [port]) per type
+        groups: dict[str, tuple[list, list]] = {}
+        for name, port in controller.sense.items():
+            v = by_name[name]
+            vrs, ports = groups.setdefault(v.type, ([], []))
+            vrs.append(v.valueReference)
+            ports.append(port)
+        for type_, (vrs, ports) in groups.items():
+            self._inputs.append((getattr(self.fmu, _SETTERS[self.version][type_]), type_, vrs, ports))
+        outs = [by_name[controller.drive[p]] for p in sorted(controller.drive)]  # *_left before *_right
+        self._outputs = [(self._getter(v.type), v.valueReference) for v in outs]
+
+    def _getter(self, type_: str):
+        if self.version == 2:
+            return getattr(self.fmu, "getReal" if type_ == "Real" else "getInteger")
+        return getattr(self.fmu, f"get{type_}")
+
+    def _fmi2_callbacks(self):
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+                               fmi2CallbackLoggerTYPE)
+        from fmpy.logging import addLoggerProxy
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(self._log2)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(ctypes.byref(callbacks))
+        self._callbacks = callbacks  # kept from the garbage collector while the FMU lives
+        return callbacks
+
+    def _log2(self, env, instance, status, category, message) -> None:
+        self._log(status, message)
+
+    def _log3(self, env, status, category, message) -> None:
+        self._log(status, message)
+
+    def _log(self, status: int, message) -> None:
+        text = " ".join(_text(message).split())
+        if status >= 1:
+            self.messages.append(text)
+        log.log(LEVEL[status] if 0 <= status < len(LEVEL) else logging.ERROR, "controller FMU: %s", text)
+
+    def _error(self, what: str, e: Exception) -> TwinError:
+        said = f"; it said: {self.messages[-1]}" if self.messages else ""
+        return TwinError(f"--controller-fmu {self.path}: {what} ({' '.join(str(e).split())[:200]}){said}")
+
+    def step(self, t: float, h: float, values: Mapping[str, float]) -> tuple[float, float]:
+        """Set the inputs read at ``t`` [s], step the FMU to ``t + h``, and return its (left, right) outputs."""
+        try:
+            for setter, type_, vrs, ports in self._inputs:
+                if type_ == "Boolean":
+                    setter(vrs, [bool(values[p] > 0) for p in ports])
+                elif type_ in ("Real", "Float64", "Float32"):
+                    setter(vrs, [float(values[p]) for p in ports])
+                else:
+                    setter(vrs, [int(round(values[p])) for p in ports])
+            self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            left, right = (float(get([vr])[0]) for get, vr in self._outputs)
+        except Exception as e:
+            raise self._error(f"its step at t = {t:.6g} s failed", e) from None
+        return left, right
+
+    def close(self) -> None:
+        """Terminate and free the FMU, and remove its extracted files."""
+        if self.fmu is not None:
+            fmu, self.fmu = self.fmu, None
+            try:
+                fmu.terminate()
+            except Exception:  # a controller that failed may refuse to terminate: it is freed all the same
+                pass
+            try:
+                fmu.freeInstance()
+            except Exception:
+                pass
+        self._tmp.cleanup()
+
+    def __enter__(self) -> "ControllerSession":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
