@@ -12,9 +12,11 @@ import pytest
 
 from twin.core import COL, DigitalTwin, LapJudge, LapLimits, run_laps
 from twin.core import native as core
-from twin.core.lap import COMPLETED, DIVERGED, LINE_LOST, OFF_TRACK, TIMEOUT
+from twin.core.outcomes import LAP_STATUS as STATUS  # enum lf_lap_status, checked against C when the library loads
+from twin.core.outcomes import Outcome
 
-STATUS = ("running", COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED, "calibration", "refused")  # enum lf_lap_status
+COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED = (Outcome.COMPLETED.value, Outcome.OFF_TRACK.value, Outcome.LINE_LOST.value,
+                                                      Outcome.TIMEOUT.value, Outcome.DIVERGED.value)
 
 
 class Limits(ctypes.Structure):

@@ -30,8 +30,10 @@ class Status(enum.IntEnum):
 
 
 def c_names() -> dict[str, int]:
-    """{C name: value} of every :class:`Status`, as ``lf_status_names`` should list them."""
-    return {f"LF_{s.name}": int(s) for s in Status}
+    """{C name: value} of every :class:`Status` and lap status (:data:`LAP_STATUS`), as ``lf_status_names`` lists
+    them."""
+    return {**{f"LF_{s.name}": int(s) for s in Status},
+            **{f"LF_LAP_{name.upper()}": i for i, name in enumerate(LAP_STATUS)}}
 
 
 # why the callback refused a simulation (lf_sim.error), for the lap's detail
@@ -57,6 +59,12 @@ class Outcome(str, enum.Enum):
     CALIBRATION = "calibration"
     REFUSED = "refused"  # the C refused the simulation (a program error, reported as a result)
     FIRMWARE_STALLED = "firmware_stalled"  # the binary in the loop stopped (twin.pil.lap)
+
+
+# ``enum lf_lap_status``: a lap the C judges (the FMU) is running (0) or ended with one of these outcomes (1 …)
+LAP_STATUS: tuple[str, ...] = ("running", Outcome.COMPLETED.value, Outcome.OFF_TRACK.value, Outcome.LINE_LOST.value,
+                               Outcome.TIMEOUT.value, Outcome.DIVERGED.value, Outcome.CALIBRATION.value,
+                               Outcome.REFUSED.value)
 
 
 def outcome_of(status: Status) -> Outcome:

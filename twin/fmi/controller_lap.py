@@ -21,7 +21,8 @@ from twin.core import native as core
 from twin.core.calibration import range_too_small, turn_too_long
 from twin.core.closed_loop import check_seed, setup, start_phase
 from twin.core.digital_twin import DigitalTwin
-from twin.core.lap import CALIBRATION, DIVERGED, REFUSED, LapJudge, LapLimits, LapResult
+from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.outcomes import Outcome
 from twin.errors import TwinError
 from twin.fmi.controller import ControllerFmu
 from twin.model.control import IDLE, RUN, calibration_ticks
@@ -69,10 +70,10 @@ def _calibrate(twin, model, data, params, sensor, physics, seed, judge) -> tuple
     mujoco.mj_step(model, data, (calibration_ticks(params) + 2) * steps)
     core.flush_mujoco_log()
     if _diverged(data):
-        judge.fail(DIVERGED, "the physics produced a non-finite state during the calibration turn", data.time, 0.0)
+        judge.fail(Outcome.DIVERGED, "the physics produced a non-finite state during the calibration turn", data.time, 0.0)
         return None
     if why := core.refusal(sim):
-        judge.fail(REFUSED, why, data.time, 0.0)
+        judge.fail(Outcome.REFUSED, why, data.time, 0.0)
         return None
     if sim.fw.mode != IDLE:
         raise TwinError(f"calibration did not finish in {(calibration_ticks(params) + 2) * steps} steps")
@@ -100,7 +101,7 @@ def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int =
         raise TwinError(f"--controller-fmu {controller.path}: its sample time {controller.sample_time:g} s is "
                         f"shorter than the physics step ({physics.timestep:g} s)")
     if why := turn_too_long(params, limits):
-        judge.fail(CALIBRATION, why, 0.0, 0.0)
+        judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         return judge.result(params.count, [], [], values)
     core.install_callback()
     data = mujoco.MjData(model)
@@ -114,7 +115,7 @@ def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int =
         sim.fw.cal_min[j], sim.fw.cal_max[j] = a, b
     sim.rng = rng
     if why := range_too_small(twin, params, sensor, lo, hi, limits):
-        judge.fail(CALIBRATION, why, 0.0, 0.0)
+        judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         return judge.result(params.count, lo, hi, values)
     start_phase(sim, RUN)
     sim.magic = 0.0  # this loop owns the head: the control callback leaves it alone
@@ -154,10 +155,10 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
             mujoco.mj_step2(model, data)
         core.flush_mujoco_log()
         if _diverged(data):
-            judge.fail(DIVERGED, "the physics produced a non-finite state", data.time, 0.0)
+            judge.fail(Outcome.DIVERGED, "the physics produced a non-finite state", data.time, 0.0)
             return
         if refused:
-            judge.fail(REFUSED, core.refusal(sim) or "the C loop refused the simulation", data.time, 0.0)
+            judge.fail(Outcome.REFUSED, core.refusal(sim) or "the C loop refused the simulation", data.time, 0.0)
             return
         judge.feed(core.records_since(data.userdata, sim, consumed))
         consumed = sim.records_written

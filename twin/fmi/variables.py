@@ -15,6 +15,7 @@ import dataclasses
 from line_sensor.geometry import MAX_SENSORS
 from twin.core import native as core
 from twin.core.digital_twin import DigitalTwin
+from twin.core.outcomes import LAP_STATUS
 from twin.errors import TwinError
 from twin.model.space import ChangeCost
 
@@ -104,8 +105,8 @@ def _outputs(kind: str, count: int) -> list[Variable]:
     out += [_record(f"sensor.calibrated[{i + 1}]", core.CALIBRATED_COLUMN + i, None, f"sensor {i + 1}'s calibrated "
                     "reading (Eq. 8), 0 (white) to 1000 (black)") for i in range(count)]
     out += [
-        _lap("lap_status", "status", None, "0 running, 1 completed, 2 off track, 3 line lost, 4 timeout, 5 diverged, "
-             "6 calibration failed, 7 refused", "Integer"),
+        _lap("lap_status", "status", None, ", ".join(f"{i} {name.replace('_', ' ')}" for i, name in
+                                                      enumerate(LAP_STATUS)), "Integer"),
         _lap("lap_completed", "completed", None, "the lap is completed", "Boolean"),
         _lap("lap_time", "time", "s", "lap time, interpolated at the crossing of the start line; 0 until completed"),
         _lap("lap_distance", "distance", "m", "progress along the centre line since the start"),

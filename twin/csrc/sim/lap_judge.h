@@ -15,17 +15,7 @@
 
 #include "twin_core.h"
 
-/* How a lap ended, or that it has not (the order of twin.core.lap's outcome names). */
-enum lf_lap_status {
-  LF_LAP_RUNNING = 0,
-  LF_LAP_COMPLETED = 1,
-  LF_LAP_OFF_TRACK = 2,
-  LF_LAP_LINE_LOST = 3,
-  LF_LAP_TIMEOUT = 4,
-  LF_LAP_DIVERGED = 5,
-  LF_LAP_CALIBRATION = 6,
-  LF_LAP_REFUSED = 7
-};
+#include "lf_status.h" /* enum lf_lap_status: how a lap ended, beside the simulation's codes */
 
 /* Failure thresholds: twin.core.lap.LapLimits. Lengths [m], times [s]. */
 typedef struct {

@@ -22,13 +22,26 @@ enum lf_status {
   LF_STALLED = 10      /* the watchdog: the MCU stopped, or stopped ticking, releasing a line or writing its PWM */
 };
 
+/* How a lap the C judges (the FMU's lap_judge.c) ended, or that it has not: twin.core.outcomes.Outcome's values in
+ * LAP_STATUS order, listed in lf_status_names too so that Python checks them when the library loads. */
+enum lf_lap_status {
+  LF_LAP_RUNNING = 0,
+  LF_LAP_COMPLETED = 1,
+  LF_LAP_OFF_TRACK = 2,
+  LF_LAP_LINE_LOST = 3,
+  LF_LAP_TIMEOUT = 4,
+  LF_LAP_DIVERGED = 5,
+  LF_LAP_CALIBRATION = 6,
+  LF_LAP_REFUSED = 7
+};
+
 /* One code's name, for Python's load-time check. */
 typedef struct {
   const char *name;
   int32_t value;
 } lf_status_name;
 
-/* Every enum lf_status code with its name; returns their number. */
+/* Every enum lf_status and enum lf_lap_status code with its name; returns their number. */
 int32_t lf_status_names(const lf_status_name **names);
 
 #endif
