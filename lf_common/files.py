@@ -331,11 +331,17 @@ def publish_once(tmp: str, target: str) -> bool:
 
 # --- reading with limits -------------------------------------------------------------------------------
 
-def read_bytes(path: str, limit: int, what: str) -> bytes:
-    """The whole of a regular file of at most ``limit`` bytes.
+_KINDS = ((stat.S_ISDIR, "folder"), (stat.S_ISFIFO, "FIFO"), (stat.S_ISCHR, "character device"),
+          (stat.S_ISBLK, "block device"), (stat.S_ISSOCK, "socket"))
+
+
+def input_file(path: str, what: str) -> os.stat_result:
+    """Check that ``path`` is a regular file: the one check of every input file a flag names (a FIFO or device
+    would block a reader or never end). Returns its ``stat``.
 
     Raises:
-      LineFollowerError: missing, a folder or device, unreadable; InputTooLarge above ``limit``.
+      LineFollowerError: ``PATH: no such WHAT``, ``PATH: is a FIFO, not a regular file`` (a folder, a device, a
+        socket alike), or ``PATH: cannot read the WHAT (why)``.
     """
     try:
         st = os.stat(path)
@@ -343,10 +349,19 @@ def read_bytes(path: str, limit: int, what: str) -> bytes:
         raise LineFollowerError(f"{path}: no such {what}") from None
     except (OSError, ValueError) as e:
         raise LineFollowerError(f"{path}: cannot read the {what} ({getattr(e, 'strerror', None) or e})") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise LineFollowerError(f"{path}: is a folder, expected a {what}")
     if not stat.S_ISREG(st.st_mode):
-        raise LineFollowerError(f"{path}: is not a regular file, expected a {what}")
+        kind = next((name for test, name in _KINDS if test(st.st_mode)), "special file")
+        raise LineFollowerError(f"{path}: is a {kind}, not a regular file")
+    return st
+
+
+def read_bytes(path: str, limit: int, what: str) -> bytes:
+    """The whole of a regular file (:func:`input_file`) of at most ``limit`` bytes.
+
+    Raises:
+      LineFollowerError: missing, not a regular file, unreadable; InputTooLarge above ``limit``.
+    """
+    st = input_file(path, what)
     if st.st_size > limit:
         raise InputTooLarge(f"{path}: the {what} is {st.st_size / 1e6:.1f} MB, more than the {limit / 1e6:g} MB limit")
     try:
@@ -369,16 +384,47 @@ def read_text(path: str, limit: int, what: str) -> str:
         raise LineFollowerError(f"{path}:{line}: the {what} is not UTF-8 text (byte 0x{data[e.start]:02x})") from None
 
 
+MAX_INT_DIGITS = 40  # a seed, the longest whole number the twin reads, has 20 digits
+
+
+class _DuplicateKey(Exception):
+    pass
+
+
+class _LongInteger(Exception):
+    pass
+
+
+def _unique_keys(pairs: list) -> dict:
+    out = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
+
+
+def _integer(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INT_DIGITS:  # before int(): Python refuses 4300+ digits with its own advice
+        raise _LongInteger(text)
+    return int(text)
+
+
 def parse_json(text: str, where: str):
-    """JSON from text; errors name ``where`` (a path, or path:line) and stay one line."""
+    """JSON from text; errors name ``where`` (a path, or path:line) and stay one line. A key given twice in one
+    object (``json`` would keep the last silently) and a whole number longer than ``MAX_INT_DIGITS`` are refused."""
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_unique_keys, parse_int=_integer)
     except json.JSONDecodeError as e:
-        raise LineFollowerError(f"{where}: not JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+        at = f"line {e.lineno}, column {e.colno}" if "\n" in text.strip() else f"column {e.colno}"
+        raise LineFollowerError(f"{where}: not JSON ({at}: {e.msg})") from None
     except RecursionError:
         raise LineFollowerError(f"{where}: JSON nested too deeply") from None
-    except ValueError as e:  # e.g. an integer of more digits than Python converts
-        raise LineFollowerError(f"{where}: unreadable JSON ({str(e).splitlines()[0]})") from None
+    except _DuplicateKey as e:
+        raise LineFollowerError(f"{where}: key {str(e.args[0])[:80]!r} is given twice in one object") from None
+    except _LongInteger as e:
+        raise LineFollowerError(f"{where}: a whole number of {len(e.args[0].lstrip('-'))} digits; no value here has "
+                                f"more than {MAX_INT_DIGITS}") from None
 
 
 def read_json(path: str, limit: int, what: str):

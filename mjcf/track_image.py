@@ -24,6 +24,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from lf_common.errors import InputTooLarge
+from lf_common.files import input_file
 from mjcf.errors import MjcfError
 from mjcf.track import MAX_TEXTURE_PIXELS, FloorTexture, Track
 
@@ -35,8 +36,7 @@ WIDTH_SLACK_PX = 2.0  # a line's pixels lie within half its mean width of its ce
 
 def read_grey(path: str) -> tuple[np.ndarray, float | None]:
     """(grey levels (H, W) uint8, metres per pixel from DPI or None)."""
-    if os.path.isdir(path):
-        raise MjcfError(f"{path}: is a folder, expected a track image")
+    input_file(path, "track image")  # a FIFO would block the image reader for ever
     try:
         with Image.open(path) as img:  # reads the header only: the size is known before any pixel is decoded
             w, h = img.size
@@ -45,8 +45,6 @@ def read_grey(path: str) -> tuple[np.ndarray, float | None]:
             img.load()
             dpi = img.info.get("dpi")
             grey = np.asarray(img.convert("L"), dtype=np.uint8)
-    except FileNotFoundError:
-        raise MjcfError(f"{path}: track image not found") from None
     except Image.DecompressionBombError as e:  # refused by Pillow's own limit, before its size reached us
         pixels = [int(n) for n in re.findall(r"\d+", str(e))[:1]]
         raise InputTooLarge(_too_large(path, pixels[0] if pixels else 0, 1)) from None
@@ -78,7 +76,8 @@ def track_from_png(path: str, metres_per_pixel: float | None = None, line_width_
     mpp = metres_per_pixel if metres_per_pixel is not None else mpp_dpi
     name = os.path.splitext(os.path.basename(path))[0]
     if mpp is None:
-        raise MjcfError(f"{path}: the image has no DPI metadata; give its scale (metres per pixel)")
+        raise MjcfError(f"{path}: the image has no DPI metadata; give its scale with --metres-per-pixel M "
+                        "(e.g. 0.001 for 1 mm a pixel)")
     if not (math.isfinite(mpp) and MIN_METRES_PER_PIXEL * (1 - 1e-9) <= mpp <= MAX_METRES_PER_PIXEL * (1 + 1e-9)):
         raise MjcfError(f"{path}: a scale of {mpp!r} m per pixel is not a track's (expected {MIN_METRES_PER_PIXEL * 1000:g}–"
                         f"{MAX_METRES_PER_PIXEL * 1000:g} mm per pixel); check the DPI metadata or --metres-per-pixel")

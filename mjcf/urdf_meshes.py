@@ -5,6 +5,7 @@ once for each (file, scale)."""
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 import re
 
@@ -13,9 +14,13 @@ import numpy as np
 import trimesh
 
 from lf_common.cache import cache_dir, cached_folder
-from lf_common.errors import InputTooLarge
+from lf_common.errors import InputTooLarge, LineFollowerError
+from lf_common.files import input_file
 from mjcf.errors import MjcfError
-from mjcf.robot_source import Description, find_package
+from mjcf.robot_source import Description
+from mjcf.ros_packages import PackageSearch
+
+log = logging.getLogger("mjcf.urdf_to_mjcf")  # the converter speaks through one logger (the CLI prints the name)
 
 MAX_MESH_BYTES = 64_000_000  # a mesh file larger than this is a render model, not a collision shape
 MAX_MESH_FACES = 500_000  # trimesh needs ~1.5 kB a face to load and check one (a 2.6M-face OBJ took 3.9 GB)
@@ -23,22 +28,31 @@ MUJOCO_MESH_FORMATS = (".stl", ".obj", ".msh")
 
 
 class MeshResolver:
-    """URDF mesh filename → file: relative to the description's folder, absolute, or ``package://NAME/…``
-    through :func:`mjcf.robot_source.find_package` (the ``--package`` map, then the folders above)."""
+    """URDF mesh filename → file: relative to the description's folder, absolute, or ``package://NAME/…`` through
+    :class:`mjcf.ros_packages.PackageSearch` (``--package``, ROS's paths, the folders around the description; when
+    nothing claims NAME, the folder above the description that holds the file, noted in ``notes``)."""
 
-    def __init__(self, description: Description, package_dirs: tuple[tuple[str, str], ...]):
+    def __init__(self, description: Description, package_dirs: tuple[tuple[str, str], ...], notes: list[str]):
         self.path = description.path
         self.folder = description.folder
-        self.package_dirs = package_dirs
+        self.search = PackageSearch(description.folder, package_dirs)
+        self.notes = notes
+        self._folders: dict[str, str] = {}  # package → its folder, once found: every file of it resolves alike
 
     def __call__(self, fname: str) -> str:
         m = re.match(r"package://([^/]+)/(.*)", fname)
         if m:
-            folder = find_package(m.group(1), self.folder, self.package_dirs)
-            if folder is None:
-                raise MjcfError(f"{self.path}: {fname}: package {m.group(1)!r} not found beside the description or "
-                                f"above it; give --package {m.group(1)}=DIR")
-            return os.path.join(folder, m.group(2))
+            name, rest = m.groups()
+            if name not in self._folders:
+                folder, claimed = self.search.folder_for(name, rest)
+                if folder is None:
+                    raise MjcfError(self.search.not_found(self.path, fname, name, rest))
+                if not claimed:
+                    self.notes.append(f"package {name!r}: no package.xml or folder claims the name, so it is {folder}, "
+                                      f"the folder above the description that holds {rest} (as yourdfpy resolves it)")
+                    log.warning("%s: %s", self.path, self.notes[-1])
+                self._folders[name] = folder
+            return os.path.join(self._folders[name], rest)
         if fname.startswith("file://"):
             fname = fname[len("file://") :]
         return fname if os.path.isabs(fname) else os.path.join(self.folder, fname)
@@ -47,9 +61,9 @@ class MeshResolver:
 def load_mesh(source: str, urdf: str) -> trimesh.Trimesh:
     """A mesh file as one trimesh, within the size limits; errors name the file and what to do."""
     try:
-        size = os.path.getsize(source)
-    except OSError as e:
-        raise MjcfError(f"{urdf}: mesh {source}: cannot read it ({e.strerror or e})") from None
+        size = input_file(source, "mesh file").st_size
+    except LineFollowerError as e:
+        raise MjcfError(f"{urdf}: mesh {e}") from None
     if size > MAX_MESH_BYTES:
         raise InputTooLarge(f"{urdf}: mesh {source} is {size / 1e6:.0f} MB, more than the {MAX_MESH_BYTES / 1e6:g} MB "
                             f"limit; simplify it (e.g. decimate to under {MAX_MESH_FACES // 1000}k faces in Blender or "
@@ -102,7 +116,7 @@ class MeshAssets:
     def add(self, link_name: str, mesh) -> str:
         """The asset name of a URDF ``<mesh>`` element of ``link_name``, added to the spec unless it already is."""
         source = self.resolve(mesh.filename)
-        if not os.path.isfile(source):
+        if not os.path.lexists(source):
             raise MjcfError(f"{self.urdf}: mesh {mesh.filename!r} of link {link_name} not found")
         scale = np.ones(3) if mesh.scale is None else np.broadcast_to(np.asarray(mesh.scale, dtype=float), (3,))
         key = (os.path.abspath(source), tuple(scale))

@@ -30,10 +30,9 @@ def pos_quat(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return T[:3, 3].copy(), quat
 
 
-def load_urdf(path: str, config: RobotConfig = RobotConfig()) -> tuple[yourdfpy.URDF, MeshResolver, Description]:
-    """The description at ``path`` (URDF or xacro) parsed, its mesh resolver, and what reading it found."""
+def load_urdf(path: str, config: RobotConfig = RobotConfig()) -> tuple[yourdfpy.URDF, Description]:
+    """The description at ``path`` (URDF or xacro) parsed, and what reading it found."""
     description = read_description(path, config.xacro_args, config.package_dirs)  # well-formed, <robot> root
-    resolver = MeshResolver(description, config.package_dirs)
     try:
         # yourdfpy logs a warning per unresolved file; we report missing meshes ourselves
         logging.getLogger("yourdfpy").setLevel(logging.ERROR)
@@ -41,7 +40,7 @@ def load_urdf(path: str, config: RobotConfig = RobotConfig()) -> tuple[yourdfpy.
                                   filename_handler=lambda f: f, mesh_dir=description.folder)
     except Exception as e:  # yourdfpy raises assorted errors for bad attributes
         raise MjcfError(f"{path}: invalid URDF ({e})") from None
-    return urdf, resolver, description
+    return urdf, description
 
 
 class UrdfTree:
@@ -64,7 +63,9 @@ class UrdfTree:
     def __init__(self, path: str, config: RobotConfig):
         self.path = path
         self.config = config
-        urdf, self.resolve, self.description = load_urdf(path, config)
+        urdf, self.description = load_urdf(path, config)
+        self.notes: list[str] = list(self.description.notes)
+        self.resolve = MeshResolver(self.description, config.package_dirs, self.notes)
         self.robot = urdf.robot
         self.links = {link.name: link for link in self.robot.links}
         self.joints = {j.name: j for j in self.robot.joints}
@@ -79,7 +80,6 @@ class UrdfTree:
         if len(roots) != 1:
             raise MjcfError(f"{path}: expected one root link, found {len(roots)} ({', '.join(roots) or 'a cycle'})")
         self.root = roots[0]
-        self.notes: list[str] = list(self.description.notes)
         self.link_T: dict[str, np.ndarray] = {self.root: np.eye(4)}
         self._kinematics(self.root)
         self.hub_axes: dict[str, np.ndarray] = {}
@@ -110,8 +110,8 @@ class UrdfTree:
         if joint.name in self.hub_axes:
             return self.hub_axes[joint.name]
         axis = np.asarray(joint.axis if joint.axis is not None else [1.0, 0.0, 0.0], dtype=float)
-        if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
-            raise MjcfError(f"{self.path}: joint {joint.name} has a zero or invalid axis")
+        if np.linalg.norm(axis) == 0:  # finite and sane: checked where the description is read (urdf_numbers)
+            raise MjcfError(f"{self.path}: joint {joint.name} has a zero axis")
         return axis / np.linalg.norm(axis)
 
     def joint_frame(self, joint) -> tuple[np.ndarray, np.ndarray]:

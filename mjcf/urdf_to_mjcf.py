@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 import os
 
 import mujoco
@@ -132,8 +131,8 @@ class _Writer:
                     if j.limit.lower < j.limit.upper:
                         mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE
                         mj.range = [j.limit.lower, j.limit.upper]
-                if j.dynamics is not None:
-                    mj.damping = float(j.dynamics.damping or 0.0)
+                if j.dynamics is not None:  # MuJoCo 4's damping is a polynomial [a, b, c]: URDF's is linear
+                    mj.damping = [float(j.dynamics.damping or 0.0), 0.0, 0.0]
                     mj.frictionloss = float(j.dynamics.friction or 0.0)
             elif j.type != "fixed":
                 raise MjcfError(f"{self.path}: joint {j.name} has unsupported type {j.type!r}")
@@ -142,14 +141,10 @@ class _Writer:
     def _inertial(self, body: mujoco.MjsBody, link, moving: bool) -> None:
         inertial = link.inertial
         if inertial is not None and inertial.mass is not None:
-            mass = float(inertial.mass)
-            if not math.isfinite(mass) or mass < 0:
-                raise MjcfError(f"{self.path}: link {link.name} has invalid mass {inertial.mass!r}")
+            mass = float(inertial.mass)  # its numbers are checked where the description is read (urdf_numbers)
             if mass > 0:
                 T = origin(inertial)
                 I = np.asarray(inertial.inertia if inertial.inertia is not None else np.zeros((3, 3)), dtype=float)
-                if not np.all(np.isfinite(I)):
-                    raise MjcfError(f"{self.path}: link {link.name} has a non-finite inertia")
                 Rm = T[:3, :3]
                 Ib = Rm @ I @ Rm.T  # URDF gives the tensor in the inertial frame; MuJoCo wants the body frame
                 body.explicitinertial = True
@@ -218,10 +213,6 @@ class _Writer:
             g.meshname = self.meshes.add(link_name, geo.mesh)
         else:
             raise MjcfError(f"{self.path}: link {link_name} has an empty <geometry>")
-        if any(s < 0 or not math.isfinite(s) for s in np.asarray(g.size).ravel()) or (
-            g.type != mujoco.mjtGeom.mjGEOM_MESH and g.size[0] <= 0
-        ):
-            raise MjcfError(f"{self.path}: link {link_name} has a geometry with a non-positive size")
         if visual:
             g.contype = g.conaffinity = 0
             g.group = VISUAL_GROUP

@@ -144,8 +144,8 @@ def test_json_inputs_are_bounded_and_errors_are_one_line(tmp_path):
     deep.write_text("[" * 100000 + "]" * 100000)
     long = tmp_path / "long.json"
     long.write_text('{"control.kp": ' + "9" * 5000 + "}")
-    for path, needle in ((deep, "nested too deeply"), (long, "unreadable JSON"), ("/dev/zero", "not a regular file"),
-                         (tmp_path, "is a folder")):
+    for path, needle in ((deep, "nested too deeply"), (long, "a whole number of 5000 digits"),
+                         ("/dev/zero", "is a character device, not a regular file"), (tmp_path, "is a folder")):
         with pytest.raises(Exception, match=needle) as e:
             read_json(str(path), 2**20, "gains file")
         assert "\n" not in str(e.value)

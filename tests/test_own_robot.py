@@ -19,7 +19,8 @@ import pytest
 import ros_style as rs
 from mjcf.errors import MjcfError
 from mjcf.robot_config import RobotConfig
-from mjcf.robot_source import find_package, read_description
+from mjcf.robot_source import read_description
+from mjcf.ros_packages import find_package
 from mjcf.urdf_to_mjcf import DEFAULT_DENSITY, convert
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError

@@ -64,7 +64,7 @@ def test_robust_gains_finish_the_whole_envelope_on_held_out_seeds(capsys):
 
 
 @pytest.mark.parametrize("args, needle", [
-    (["--scenario", "motion.mu="], "expected ADDRESS=VALUE"),
+    (["--scenario", "motion.mu="], "expected ADDRESS=V1,V2"),
     (["--scenario", "motion.mu=nan"], "must be finite"),
     (["--scenario", "motion.muu=0.5"], "unknown parameter address"),
     (["--scenario", "cad.L=0.04,0.05"], "rebuilds"),

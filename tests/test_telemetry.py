@@ -6,9 +6,9 @@ import json
 
 import pytest
 
+from lf_common.errors import LineFollowerError
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
-from twin.errors import TwinError
 from twin.run import main
 from twin.telemetry.jsonl import lap_lines, read_telemetry, write_telemetry
 from tuner.align.trace import align_telemetry
@@ -65,7 +65,7 @@ def test_a_parameter_the_run_does_not_exercise_is_reported(oval, recorded):
     ('{"type":"header","format":"lf-telemetry","version":1,"dt_s":0.005,"sensors":8}\n{"type":"sample","t":0}\n',
      ":2: field 'pos' must be a finite number"),
     ('{"type":"header","format":"lf-telemetry","version":1,"dt_s":0.005,"sensors":8}\n{"type":"sample",\n',
-     ":2: not a JSON object"),
+     ":2: not JSON"),
     ('{"type":"sample","t":0}\n', ":1: the first line must be the lf-telemetry header"),
     ('{"type":"header","format":"lf-telemetry","version":9,"dt_s":0.005,"sensors":8}\n', "version 9 is not supported"),
     ('{"type":"header","format":"lf-telemetry","version":1,"dt_s":0.005,"sensors":8}\n'
@@ -75,7 +75,7 @@ def test_a_parameter_the_run_does_not_exercise_is_reported(oval, recorded):
 def test_malformed_telemetry_names_the_line(tmp_path, body, needle, capsys):
     bad = tmp_path / "bad.jsonl"
     bad.write_text(body)
-    with pytest.raises(TwinError, match=needle.replace("(", r"\(")):
+    with pytest.raises(LineFollowerError, match=needle.replace("(", r"\(")):
         read_telemetry(str(bad))
     assert main(["align", "--telemetry", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -93,7 +93,7 @@ def test_third_party_robot_drives_straight_on_equal_voltages(third_party_urdf):
     (minimal_urdf(extra="<link name='lost'/>"), "expected one root link"),
     (minimal_urdf(extra="<joint name='j' type='fixed'><parent link='base'/><child link='m'/></joint>"
                         "<link name='m'><visual><geometry><mesh filename='package://nope/m.stl'/></geometry></visual></link>"),
-     "package://nope/m.stl: package 'nope' not found .*--package nope=DIR"),
+     "package://nope/m.stl: package 'nope' not found.*--package nope=DIR"),
     (minimal_urdf(extra="<joint name='j' type='continuous'><parent link='base'/><child link='m'/></joint><link name='m'/>"),
      "cannot tell the two drive wheels|has no mass"),
 ])
@@ -132,3 +132,35 @@ def test_convert_cli_bad_input_is_one_line_exit_2_and_writes_nothing(tmp_path):
     assert r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr
     assert "robot.urdf" in r.stderr and "well-formed" in r.stderr
     assert not out.exists() and sorted(os.listdir(tmp_path)) == ["robot.urdf"]
+
+
+@pytest.mark.parametrize("damping, friction", [(1e-6, 0.0), (0.0, 2e-5), (1e-6, 2e-5)])
+def test_joint_dynamics_spin_a_free_wheel_down_as_the_closed_form_says(tmp_path, damping, friction):
+    """A wheel on its hinge, base held, nothing to touch: I dω/dt = −(c ω + f sign ω), so from ω0 it runs down as
+    ω(t) = (ω0 + f/c) e^(−c t / I) − f/c (c = 0: ω0 − f t / I) and stops for good at t* where that reaches 0.
+    I = 2e-6 kg·m² is the wheel's izz in minimal_urdf (its axis is the link's z); MuJoCo's implicit damping and soft
+    friction-loss constraint stay within 0.1 % of ω0 of it (measured: 0.08 % around the stop, 0.03 % before)."""
+    c, f, inertia, w0 = damping, friction, 2e-6, 50.0
+    path = tmp_path / "robot.urdf"
+    path.write_text(minimal_urdf().replace('<axis xyz="0 0 1"/></joint>',
+                                           f'<axis xyz="0 0 1"/><dynamics damping="{c}" friction="{f}"/></joint>'))
+    spec, info = convert(str(path))
+    spec.delete(spec.joint("root"))  # the base welded to the world: the wheel is a body on a hinge
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    dof = model.joint(info.wheel_joints[0]).dofadr[0]
+    data.qvel[dof] = w0
+    t, w = [], []
+    while data.time < 4.0:
+        mujoco.mj_step(model, data)
+        t.append(data.time)
+        w.append(data.qvel[dof])
+    t = np.array(t)
+    if c > 0:
+        exact = (w0 + f / c) * np.exp(-c * t / inertia) - f / c
+        t_stop = inertia / c * math.log1p(c * w0 / f) if f > 0 else math.inf
+    else:
+        exact = w0 - f * t / inertia
+        t_stop = w0 * inertia / f
+    exact = np.where(t < t_stop, exact, 0.0)
+    np.testing.assert_allclose(w, exact, rtol=0, atol=1e-3 * w0)

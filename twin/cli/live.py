@@ -9,6 +9,7 @@ import os
 import signal
 import time
 
+from lf_common.files import input_file
 from twin.cli import options as o
 from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
@@ -55,9 +56,9 @@ def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     if args.replay and args.port:
         raise TwinError("live: give --port PATH_OR_URL or --replay LOG, not both")
-    if args.replay and not os.path.isfile(args.replay):
-        raise TwinError(f"{args.replay}: no such telemetry log")
-    if not args.replay:
+    if args.replay:
+        input_file(args.replay, "telemetry log")
+    else:
         if not args.port:
             raise TwinError("live: give --port PATH_OR_URL (or --replay LOG)")
         check_port(args.port)  # a malformed URL is refused before the twin is built

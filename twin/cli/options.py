@@ -122,7 +122,8 @@ def add_description(p: argparse.ArgumentParser) -> None:
     """How to read a robot description and find its parts: wheels, caster, line-sensor mount, packages, xacro."""
     p.add_argument("--xacro-arg", action="append", metavar="NAME=VALUE", help="an argument of a xacro description, repeatable")
     p.add_argument("--package", action="append", metavar="NAME=DIR", help="where package://NAME (and $(find NAME)) "
-                   "lives, repeatable (default: searched above the description)")
+                   "lives, repeatable (default: ROS_PACKAGE_PATH, AMENT_PREFIX_PATH, then searched around the "
+                   "description)")
     p.add_argument("--wheel-joints", metavar="LEFT,RIGHT", help="the drive wheels' joints; fixed hub joints become "
                    "wheels (default: named by a diff-drive plugin, else the two continuous joints across the robot)")
     p.add_argument("--caster", metavar="NAME", help="the caster's link or collision (default: names containing 'caster')")
@@ -189,13 +190,23 @@ def add_verbose(p: argparse.ArgumentParser, quiet: bool = False) -> None:
 
 # --- parsing flag text ---------------------------------------------------------------------------------
 
+ASSIGNMENT_FORMS = {  # flag → the form its NAME=VALUE items take, as its metavar and README say
+    "--set": "ADDRESS=VALUE, e.g. motion.mu=0.6",
+    "--bounds": "ADDRESS=LOWER,UPPER, e.g. control.kp=1,60",
+    "--grid": "ADDRESS=V1,V2,…, e.g. cad.L=0.035,0.045",
+    "--scenario": "ADDRESS=V1,V2,…, e.g. motion.mu=0.6,0.9",
+    "--xacro-arg": "NAME=VALUE, e.g. use_sim=false",
+}
+
+
 def parse_assignments(items: Sequence[str] | None, flag: str = "--set") -> dict[str, str]:
-    """``["motion.mu=0.6", ...]`` → {"motion.mu": "0.6"}; the values are checked by the model space."""
+    """``["motion.mu=0.6", ...]`` → {"motion.mu": "0.6"}; the values are checked where they are used (the model
+    space, xacro). ``flag`` names the items' flag, and its form (:data:`ASSIGNMENT_FORMS`) in the error."""
     out: dict[str, str] = {}
     for item in items or ():
         address, sep, value = item.partition("=")
         if not sep or not address.strip() or not value.strip():
-            raise TwinError(f"{flag} {item!r}: expected ADDRESS=VALUE, e.g. motion.mu=0.6")
+            raise TwinError(f"{flag} {item!r}: expected {ASSIGNMENT_FORMS[flag]}")
         out[address.strip()] = value.strip()
     return out
 

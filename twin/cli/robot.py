@@ -5,18 +5,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import tempfile
 
 from lf_common.files import check_output_file, first_line_is_ours, output_dir
 from mjcf.cad import write_robot
 from mjcf.design import RobotDesign
 from mjcf.errors import MjcfError
-from mjcf.world import build_world, compile_world, save_xml, write_texture_png
-from motors import POLOLU_MP_6V_30_1
+from mjcf.world import save_xml
 from twin.cli import options as o
 from twin.cli.guard import run_command
 from twin.cli.output import Output
-from twin.model.environment import load_track
+from twin.core.digital_twin import DigitalTwin
 from twin.model.partial_models import default_space
 
 GENERATE_HELP = "write the parametric robot's URDF and meshes into a folder"
@@ -73,18 +71,14 @@ def run_generate(args: argparse.Namespace) -> int:
 def run_convert(args: argparse.Namespace) -> int:
     out = Output(args.json)
     check_output_file(args.out, first_line_is_ours, "MJCF file")
-    config = o.robot_config(args)
-    space = default_space()
-    track, texture = load_track(args.track, space.get("environment.line_width"),
-                                space.get("environment.texture_resolution"), args.metres_per_pixel)
-    with tempfile.TemporaryDirectory() as tmp:
-        png = os.path.join(tmp, f"{track.name}.png")
-        write_texture_png(texture, png)
-        spec, info = build_world(args.urdf, texture, png, track.start_pose(), POLOLU_MP_6V_30_1.constants(), config=config)
-        model = compile_world(spec, args.urdf)
-        xml = save_xml(spec, args.out)
+    # the world every other command runs, so the robot is checked as they check it (its sensor mount too)
+    twin = DigitalTwin(track=args.track, robot_urdf=args.urdf, robot_config=o.robot_config(args),
+                       track_metres_per_pixel=args.metres_per_pixel)
+    model = twin.model()
+    info = twin.info
+    xml = save_xml(twin.spec(), args.out)
     summary = {
-        "xml": xml, "bodies": model.nbody - 1, "mass_kg": float(model.body_subtreemass[1]),
+        "xml": xml, "bodies": model.nbody - 1, "mass_kg": float(model.body_subtreemass[model.body(info.root_body).id]),
         "wheel_joints": list(info.wheel_joints), "wheel_radius_m": info.wheel_radius, "half_track_m": info.half_track,
         "caster_geoms": list(info.caster_geoms), "sensor_body": info.sensor_body, "notes": list(info.notes),
     }

@@ -231,19 +231,46 @@ class DigitalTwin:
         """The line array's height above the floor at the start pose [m]."""
         return float(_at_start(self._model).site(SENSOR_SITE).xpos[2])
 
-    def _check_sensor_height(self) -> None:
-        """A description's line array must sit where the sensor model can tell the line from the ground."""
+    def _check_sensor_mount(self, info: RobotInfo) -> None:
+        """The one check of where the line array sits, whatever placed it (``--sensor-mount``, ``--sensor-link``, a
+        link named *sensor*, ``cad.S``, the generated robot's CAD), run by every command that builds a world: ahead
+        of the axle, and on a description's robot at a height where the sensor model can tell the line from the
+        ground (the generated robot's height is a design parameter: too high a design fails its calibration turn,
+        as a lap result). Sets :attr:`sensor_distance` (S)."""
+        fix = "place it with --sensor-mount LINK:X,Y,Z (X ahead, Z up, in LINK's frame)"
+        what = f"{self.robot_urdf or 'generated robot'}: the line array ({self._mount_source(info)})"
+        s = _sensor_distance(self._model, self.track.start_pose().yaw)
+        if s <= MIN_SENSOR_AHEAD_M:
+            where = f"{s * 1000:.1f} mm ahead of" if s >= 0 else f"{-s * 1000:.1f} mm behind"
+            how = f"{fix}, or move it ahead with --set cad.S=DISTANCE" if self.robot_urdf else "set cad.S"
+            raise TwinError(f"{what} is {where} the axle; a line follower needs it more than "
+                            f"{MIN_SENSOR_AHEAD_M * 1000:g} mm in front; {how}")
+        self.sensor_distance = s
+        if self.robot_urdf is None:
+            return
         h = self.sensor_height()
         model = self.sensor_model()
         top = max_working_height_m(model, self.space.get("environment.line_width"), GROUND_GREY / 255,
                                    LINE_GREY / 255, LapLimits().min_calibration_range_us)
-        fix = "place it with --sensor-mount LINK:X,Y,Z (X ahead, Z up, in LINK's frame)"
         if h <= 0:
-            raise TwinError(f"sensor mount: the line array is {-h * 1000:.1f} mm below the floor; {fix}")
+            raise TwinError(f"{what} is {-h * 1000:.1f} mm below the floor; {fix}")
         if h > top:
-            raise TwinError(f"sensor mount: the line array is {h * 1000:.1f} mm above the floor, where the sensor model "
-                            f"cannot tell the line from the ground (it can up to {top * 1000:.1f} mm; "
-                            f"{describe_sensor(model)}); {fix}")
+            raise TwinError(f"{what} is {h * 1000:.1f} mm above the floor, where the sensor model cannot tell the line "
+                            f"from the ground (it can up to {top * 1000:.1f} mm; {describe_sensor(model)}); {fix}")
+
+    def _mount_source(self, info: RobotInfo) -> str:
+        """How the line array was placed, as the user said it (or as the converter found it)."""
+        config = self.robot_config
+        if self.robot_urdf is None:
+            return f"cad.S={self.space.get('cad.S'):g}"
+        if config.sensor_mount is not None:
+            link, xyz = config.sensor_mount
+            placed = f"--sensor-mount {link}:{','.join(f'{v:g}' for v in xyz)}"
+        elif config.sensor_link is not None:
+            placed = f"--sensor-link {config.sensor_link}"
+        else:
+            placed = f"at link {info.sensor_body}'s origin: no --sensor-mount or --sensor-link given"
+        return placed + (f", cad.S={self.sensor_ahead:g}" if self.sensor_ahead is not None else "")
 
     def spec(self) -> mujoco.MjSpec:
         """The world's spec (built if needed), e.g. to save it as MJCF."""
@@ -267,9 +294,7 @@ class DigitalTwin:
             spec.add_numeric(name=CENTRE_LINE, data=centre_line_data(self.track))  # the C loop's lap progress
             self._model = compile_world(spec, urdf)
             _hold_texture(self._model, self.texture)
-            self.sensor_distance = _sensor_distance(self._model, self.track.start_pose().yaw)
-            if self.robot_urdf is not None:
-                self._check_sensor_height()
+            self._check_sensor_mount(info)
             self._spec, self.info, self._built_key = spec, info, key
             self.rebuilds += 1
             log.info("built world: robot %s on track %s", urdf, self.track.name)
@@ -285,6 +310,7 @@ def centre_line_data(track: Track) -> np.ndarray:
     return np.concatenate([np.column_stack([track.centre, track.arc_length[:-1]]).ravel(), [track.length_m]])
 
 
+MIN_SENSOR_AHEAD_M = 0.005  # [m] nearer the axle, the array sees no line angle to steer by
 RECORD_CAPACITY = 448  # trace ring per simulation, in control ticks; the runner drains it every chunk (≤ 400 ticks)
 
 
@@ -313,11 +339,7 @@ def _sensor_distance(model: mujoco.MjModel, yaw: float) -> float:
     """S: how far the sensor array sits ahead of the axle centre along the heading, at the start pose [m]."""
     data = _at_start(model)
     ahead = data.site(SENSOR_SITE).xpos[:2] - data.site(AXLE_SITE).xpos[:2]
-    s = float(ahead @ np.array([np.cos(yaw), np.sin(yaw)]))
-    if s <= 0.005:
-        raise TwinError(f"sensor mount: the array is {s * 1000:.1f} mm ahead of the axle; a line follower needs it in front "
-                        "(for a robot description: --sensor-mount LINK:X,Y,Z, or --set cad.S=DISTANCE)")
-    return s
+    return float(ahead @ np.array([np.cos(yaw), np.sin(yaw)]))
 
 
 def apply_fields(model: mujoco.MjModel, info: RobotInfo, motor: MotorConstants, physics: PhysicsOptions) -> None:

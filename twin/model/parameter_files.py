@@ -23,13 +23,18 @@ from twin.errors import TwinError
 from twin.model.space import ModelSpace
 
 MAX_BYTES = 2**20
+_JSON_KINDS = {list: "an array", str: "a string", int: "a number", float: "a number", bool: "true or false",
+               type(None): "null"}
 
 
 def _values(path: str, doc, kind: str) -> dict:
     """The address → value object inside a document of either kind."""
     if isinstance(doc, dict):
         for key in ("gains", "parameters"):
-            if isinstance(doc.get(key), dict):
+            if key in doc:
+                if not isinstance(doc[key], dict):
+                    raise TwinError(f"{path}: \"{key}\" must be an object of addresses and numbers, not "
+                                    f"{_JSON_KINDS.get(type(doc[key]), 'that')}")
                 if kind == "gains" and key == "parameters":
                     raise TwinError(f"{path}: a parameter file (any addresses), not a gains file (control.* only)")
                 return doc[key]

@@ -19,6 +19,7 @@ import struct
 import subprocess
 
 from lf_common.cache import cache_dir, cached_folder
+from lf_common.files import input_file
 from twin.model.control import ControlParams
 from twin.errors import TwinError
 
@@ -157,10 +158,7 @@ def check_elf(path: str, need: tuple[str, ...] = ()) -> ElfInfo:
     from elftools.common.exceptions import ELFError
     from elftools.elf.elffile import ELFFile
 
-    if os.path.isdir(path):
-        raise TwinError(f"{path}: is a folder; --firmware takes c, avr or an ELF file")
-    if not os.path.isfile(path):
-        raise TwinError(f"{path}: no such firmware file; --firmware takes c, avr or an ELF file")
+    input_file(path, "firmware file")
     try:
         with open(path, "rb") as f:
             elf = ELFFile(f)

@@ -25,7 +25,7 @@ import os
 
 import numpy as np
 
-from lf_common.files import GENERATOR, atomic_file, jsonl_is_ours, read_text
+from lf_common.files import GENERATOR, atomic_file, jsonl_is_ours, parse_json, read_text
 from twin.errors import TwinError
 from twin.core.lap import COL, LapResult
 
@@ -90,10 +90,7 @@ def read_telemetry(path: str) -> Telemetry:
     for n, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
-        try:
-            obj = json.loads(line)
-        except (ValueError, RecursionError) as e:
-            raise TwinError(f"{path}:{n}: not a JSON object ({str(e).splitlines()[0][:80]})") from None
+        obj = parse_json(line, f"{path}:{n}")
         if not isinstance(obj, dict) or "type" not in obj:
             raise TwinError(f"{path}:{n}: expected an object with a \"type\"")
         kind = obj["type"]

@@ -11,7 +11,7 @@ import shutil
 import subprocess
 import sys
 
-from lf_common.files import rrd_is_ours
+from lf_common.files import input_file, rrd_is_ours
 from twin.errors import TwinError
 
 VIEWER_PORT = 9876  # rerun's default gRPC port: a viewer already listening there is reused
@@ -43,8 +43,7 @@ def require_display(saved: str | None = None) -> None:
 
 def check_recording(path: str) -> None:
     """A file that rerun can open: exists and starts with the .rrd magic bytes."""
-    if not os.path.isfile(path):
-        raise TwinError(f"{path}: no such recording")
+    input_file(path, "recording")
     try:
         with open(path, "rb") as f:
             magic = f.read(4)
