@@ -162,10 +162,11 @@ def json_safe(obj):
     return obj
 
 
-def write_json(path: str, doc: dict, what: str = "JSON output") -> str:
-    """``doc`` with ``"generator"`` first, written atomically; replaces only a JSON file of ours."""
+def write_json(path: str, doc: dict, what: str = "JSON output", is_ours: Callable[[str], bool] = json_is_ours) -> str:
+    """``doc`` with ``"generator"`` first, written atomically; replaces only a file ``is_ours`` recognises (by
+    default a JSON file of ours)."""
     text = json.dumps(json_safe({"generator": GENERATOR, **doc}), indent=2, allow_nan=False, default=str) + "\n"
-    with atomic_file(path, json_is_ours, what) as f:
+    with atomic_file(path, is_ours, what) as f:
         f.write(text)
     return os.path.abspath(path)
 

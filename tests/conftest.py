@@ -1,7 +1,9 @@
-"""Shared fixtures: a cache folder per test session, and a third-party-style URDF package."""
+"""Shared fixtures: a cache folder per test session, the root logger restored after each test, and a
+third-party-style URDF package."""
 
 from __future__ import annotations
 
+import logging
 import os
 import textwrap
 
@@ -13,6 +15,15 @@ import trimesh
 @pytest.fixture(autouse=True, scope="session")
 def _cache_dir(tmp_path_factory):
     os.environ["TWIN_CACHE_DIR"] = str(tmp_path_factory.mktemp("twin-cache"))
+
+
+@pytest.fixture(autouse=True)
+def _keep_logging():
+    """Commands run in-process point the root logger at the captured stderr of their test: undo that."""
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    yield
+    root.handlers[:], root.level = handlers, level
 
 
 THIRD_PARTY_URDF = """\

@@ -74,6 +74,7 @@ def test_designs_run_in_parallel_processes_with_the_same_results():
     (["--grid", "motor.model=nope"], "not in the motor catalogue"),
     (["--grid", "cad.L=0.04,x"], "comma-separated numbers"),
     (["--grid", "cad.L=0.04,0.04"], "given twice"),
+    (["--grid", "cad.L=1,2"], "outside"),  # ran, every design failed, exit 0
     (["--laps", "0"], "outside"),
     (["--track", "nowhere"], "unknown track"),
 ])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import time
 
 import numpy as np
 import pytest
@@ -64,3 +65,15 @@ def test_sweep_bad_input_is_one_line_and_exit_2(args, needle, capsys, tmp_path):
     assert main(["sweep", *args, "--track", "oval", "--out-dir", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and needle in err[0], err
+
+
+@pytest.mark.parametrize("axes", [["motion.mu=0.5:1:1000000000"], ["motion.mu=0.5:1:10000000"],
+                                  ["motion.mu=0.5:1:100000", "control.kp=10:30:100000"]])
+def test_an_unbounded_sweep_is_refused_at_once(axes, capsys, tmp_path):
+    """Counted before any grid is built: a billion points was killed for memory after 28 s without a word, and
+    ten million were refused after 24 s."""
+    t0 = time.monotonic()
+    assert main(["sweep", *axes, "--out-dir", str(tmp_path / "s")]) == 2
+    assert time.monotonic() - t0 < 1.0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: sweep: ") and "more than the 20,000" in err[0], err

@@ -22,7 +22,7 @@ import pytest
 from twin.core.digital_twin import DigitalTwin
 from twin.link.emulator import lap_records
 from twin.viz.viewer import viewer_executable
-from twin.viz.web_viewer import chromium_executable, headless_chromium, served
+from twin.viz.web_viewer import BROWSER_TIMEOUT_S, chromium_executable, headless_chromium, next_frame, screenshot, served
 
 TESSERACT = shutil.which("tesseract")
 RERUN = viewer_executable()
@@ -35,6 +35,7 @@ if os.environ.get("CI"):
 else:
     pytest.importorskip("playwright.sync_api")
 RUN = [sys.executable, "-m", "twin.run"]
+PANELS_BUDGET_S = 900.0  # [s] at most, to see a recording's panels; done as soon as they are all seen
 # console errors that are the network, not the viewer: no internet here (fonts, the welcome screen's examples)
 OFFLINE = re.compile(r"ERR_NAME_NOT_RESOLVED|ERR_INTERNET_DISCONNECTED|Failed to fetch|Failed to load examples")
 # (recording, panels its blueprint declares)
@@ -65,7 +66,7 @@ def recordings(tmp_path_factory):
     out = {}
     for kind, args in commands.items():
         path = d / f"{kind}.rrd"
-        r = subprocess.run([*RUN, *args, "--save", str(path)], capture_output=True, text=True, timeout=300)
+        r = subprocess.run([*RUN, *args, "--save", str(path)], capture_output=True, text=True, timeout=900)
         assert r.returncode in (0, 1) and path.is_file(), (kind, r.stderr)
         out[kind] = str(path)
     return out
@@ -73,12 +74,12 @@ def recordings(tmp_path_factory):
 
 def test_every_recording_is_valid_for_rerun(recordings):
     for kind, path in recordings.items():
-        r = subprocess.run([RERUN, "rrd", "verify", path], capture_output=True, text=True, timeout=120)
+        r = subprocess.run([RERUN, "rrd", "verify", path], capture_output=True, text=True, timeout=BROWSER_TIMEOUT_S)
         assert r.returncode == 0, (kind, r.stdout, r.stderr)
 
 
 def ocr_words(png: str) -> list[str]:
-    text = subprocess.run([TESSERACT, png, "-"], capture_output=True, text=True, timeout=60).stdout
+    text = subprocess.run([TESSERACT, png, "-"], capture_output=True, text=True, timeout=BROWSER_TIMEOUT_S).stdout
     return re.findall(r"[a-z][a-z.\-]+", text.lower())
 
 
@@ -88,18 +89,21 @@ def panel_shown(name: str, words: list[str]) -> bool:
     return all(difflib.get_close_matches(w, words, n=1, cutoff=0.75) for w in wanted)
 
 
-def show(page, path: str, shot: str, panels: list[str], timeout_s: float = 60) -> tuple[list[str], list[str]]:
-    """Serve one recording to the web viewer, load it, and read the screen until every panel is seen (or time is
-    up). Returns (the words read last, the console errors)."""
+def show(page, path: str, shot: str, panels: list[str], budget_s: float = PANELS_BUDGET_S) -> tuple[list[str], list[str]]:
+    """Serve one recording to the web viewer, load it, and read the screen until every panel is seen (at most
+    ``budget_s``). Each round waits for conditions, not for a fixed time: the viewer's canvas, then a frame drawn
+    since the last look, then the screenshot (each bounded by ``BROWSER_TIMEOUT_S``). Returns (the words read
+    last, the console errors)."""
     errors: list[str] = []
     page.on("console", lambda m: errors.append(m.text) if m.type == "error" and not OFFLINE.search(m.text) else None)
     with served(path) as url:
-        page.goto(url, timeout=60_000)
-        deadline = time.monotonic() + timeout_s
+        page.goto(url, timeout=BROWSER_TIMEOUT_S * 1000)
+        page.wait_for_selector("canvas", state="visible", timeout=BROWSER_TIMEOUT_S * 1000)
+        deadline = time.monotonic() + budget_s
         words: list[str] = []
         while time.monotonic() < deadline:
-            time.sleep(3)
-            page.screenshot(path=shot)
+            next_frame(page)
+            screenshot(page, shot)
             words = ocr_words(shot)
             if all(panel_shown(name, words) for name in panels):
                 break
@@ -115,6 +119,7 @@ def browser():
 @pytest.mark.parametrize("kind", list(PANELS))
 def test_the_web_viewer_shows_every_panel_without_errors(browser, recordings, kind, tmp_path):
     page = browser.new_page(viewport={"width": 1600, "height": 1000}, device_scale_factor=2)
+    page.set_default_timeout(BROWSER_TIMEOUT_S * 1000)  # any wait not bounded below: a busy machine's bound
     try:
         words, errors = show(page, recordings[kind], str(tmp_path / f"{kind}.png"), PANELS[kind])
     finally:

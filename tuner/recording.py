@@ -144,7 +144,7 @@ class LiveRecording:
                 index = [rr.TimeColumn("lap_time", duration=t)]
                 rec.send_columns(f"live/wheel_left/{who}", indexes=index, columns=rr.Scalars.columns(scalars=wl))
                 rec.send_columns(f"live/line_position/{who}", indexes=index, columns=rr.Scalars.columns(scalars=pos))
-        rec.flush()
+        twin_recording.flush(rec)  # to the viewer, and to the file lap by lap
 
     def close(self, error: BaseException | None = None) -> None:
         """Finish the recording (renamed into place); after an error the partial file is discarded."""

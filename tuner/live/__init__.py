@@ -4,5 +4,6 @@ through it (:mod:`tuner.live.replay`)."""
 
 from tuner.live.live_twin import LiveOptions, LiveTwin
 from tuner.live.replay import feed_line, replay_log, resume
+from tuner.live.state import check_state
 
-__all__ = ["LiveOptions", "LiveTwin", "feed_line", "replay_log", "resume"]
+__all__ = ["LiveOptions", "LiveTwin", "check_state", "feed_line", "replay_log", "resume"]

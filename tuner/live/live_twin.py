@@ -22,9 +22,8 @@ from typing import Callable
 
 import numpy as np
 
-from lf_common.files import write_json
 from tuner.align.lap_time import align_lap_time
-from tuner.live.state import STATE, read_state
+from tuner.live.state import read_state, write_state
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
@@ -57,7 +56,7 @@ class LiveTwin:
         self._thread: threading.Thread | None = None
         self._result: dict | None = None
         self._prediction: tuple[float, object] | None = None
-        self.rebuild_from_log = False  # a corrupt state was set aside: replay the log with re-alignment
+        self.rebuild_from_log = False  # a damaged state was copied aside: replay the log with re-alignment
         if state_path:
             existed = os.path.lexists(state_path)
             state = read_state(state_path, twin)
@@ -152,5 +151,4 @@ class LiveTwin:
 
     def save_state(self) -> None:
         if self.state_path:
-            write_json(self.state_path, {"values": {self.o.address: self.twin.space.get(self.o.address)},
-                                         "alignments": self.alignments}, STATE)
+            write_state(self.state_path, {self.o.address: self.twin.space.get(self.o.address)}, self.alignments)

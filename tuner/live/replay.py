@@ -6,21 +6,16 @@ import os
 from typing import Callable
 
 from tuner.live.live_twin import LiveTwin
-from twin.link.reader import LinkStats
-from twin.telemetry.wire import Event, LineSplitter, WireError, decode
+from twin.link import LinkStats, log_lines
+from twin.telemetry.wire import Event, WireError, decode
 
 
 def replay_log(path: str, live: LiveTwin, stats: LinkStats, realign: bool = False) -> None:
     """Feed a telemetry log (wire lines) through live mode: without re-aligning to resume after a restart,
-    or with it to replay a recorded session as if it were live. Read in chunks: a line of any length costs
-    no more memory than a chunk."""
-    lines = LineSplitter()
-    with open(path, "rb") as f:
-        while chunk := f.read(1 << 16):
-            for raw in lines.feed(chunk):
-                _replay_line(raw, live, stats, realign)
-    if lines.cut():
-        _replay_line(None, live, stats, realign)
+    or with it to replay a recorded session as if it were live. Lines are split as they were received: a line
+    cut off by a drop (marked in the log's break index) is not glued to the next one."""
+    for raw in log_lines(path):
+        _replay_line(raw, live, stats, realign)
 
 
 def _replay_line(raw: bytes | None, live: LiveTwin, stats: LinkStats, realign: bool) -> None:

@@ -101,17 +101,21 @@ def grid_points(axes: Sequence[Axis]) -> list[dict[str, float]]:
     return [dict(zip([a.address for a in axes], map(float, combo))) for combo in itertools.product(*(a.values for a in axes))]
 
 
-def check_size(grid: Sequence[dict], seeds: Sequence[int]) -> None:
-    if len(grid) * len(seeds) > MAX_LAPS:
-        raise TwinError(f"sweep: {len(grid) * len(seeds)} laps is more than the {MAX_LAPS} one batch holds; use fewer "
-                        "points or seeds")
+def check_size(axes: Sequence[Axis], seeds: int) -> None:
+    """At most ``MAX_LAPS`` laps, counted from the axes before any grid is built (a billion points would take all
+    memory building it)."""
+    laps = math.prod(a.count for a in axes) * seeds
+    if laps > MAX_LAPS:
+        points = " × ".join(f"{a.count:,}" for a in axes)
+        raise TwinError(f"sweep: {points} points × {seeds} seeds is {laps:,} laps, more than the {MAX_LAPS:,} one batch "
+                        "holds; use fewer points or seeds")
 
 
 def sweep(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int], nthread: int = 0) -> list[Point]:
     """Every grid point × seed as one batch of laps; points in grid order (the first axis slowest)."""
     check_axes(twin, axes)
+    check_size(axes, len(seeds))
     grid = grid_points(axes)
-    check_size(grid, seeds)
     laps = run_laps(twin, [g for g in grid for _ in seeds], seed=[s for _ in grid for s in seeds], nthread=nthread,
                     keep_traces=False)
     return points_of(grid, seeds, laps)

@@ -51,12 +51,14 @@ def run(args: argparse.Namespace) -> int:
     recording.check_targets(args.save, args.view)
     params = o.parse_grid(args.grid) if args.grid else dict(DEFAULT_GRID)
     space = default_space()
-    for address in params:
-        if address not in o.CATEGORICAL:
-            space.parameter(address)  # an unknown address: one-line error
+    for address, values in params.items():
         if address.startswith("control."):
             raise TwinError(f"--grid {address}: each design's gains are tuned (control.*); vary the robot, its motor "
                             "or its world instead")
+        if address not in o.CATEGORICAL:
+            parameter = space.parameter(address)  # an unknown address: one-line error
+            for v in values:  # outside its range: bad input now, not every design failing later
+                parameter.check(f"--grid {address}", v)
     fixed = o.parse_assignments(args.set)
     for address, check in o.CATEGORICAL.items():
         if address in fixed:

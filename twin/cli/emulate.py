@@ -4,8 +4,10 @@ telemetry at real-time pace on a pseudo-terminal it creates, or on a 127.0.0.1 T
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 
+from lf_common.errors import OutputError
 from twin.cli import options as o
 from twin.cli.output import Output
 from twin.link.emulator import (NoReader, accept, check_link_path, drain_pty, firmware_lap_records, lap_records, open_pty,
@@ -52,6 +54,19 @@ def _echo_file(path: str | None):
         raise TwinError(f"{path}: cannot append to it ({e.strerror or e})") from None
 
 
+def _echo_writer(f):
+    """Each line sent, appended to the --echo file; a write that fails stops the emulator naming the file (as an
+    OSError it would pass for a reader that went away)."""
+
+    def echo(line: str) -> None:
+        try:
+            f.write(line)
+        except OSError as e:
+            raise OutputError(f"{f.name}: cannot write the --echo file ({e.strerror or e})") from None
+
+    return echo
+
+
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     if args.link:
@@ -67,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
             elf = None if args.firmware == "avr" else args.firmware
             runnable_firmware(twin, elf)  # a bad ELF or a missing simavr fails now, not when the first reader comes
             lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps)
-        echo = echo_file.write if echo_file else None
+        echo = _echo_writer(echo_file) if echo_file else None
         if args.tcp is not None:
             _serve_tcp(args, lines, echo, out)
         else:
@@ -76,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
         out.say(f"robot emulator stops: {e}")
     finally:
         if echo_file:
-            echo_file.close()
+            with contextlib.suppress(OSError):  # (what could not be written was reported above)
+                echo_file.close()
     return 0
 
 

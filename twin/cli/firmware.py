@@ -6,6 +6,7 @@ import argparse
 import os
 import shutil
 import subprocess
+import tempfile
 
 from lf_common.files import output_dir
 from twin.pil import firmware as fw
@@ -41,10 +42,11 @@ def run(args: argparse.Namespace) -> int:
     objcopy = shutil.which("avr-objcopy")
     if not objcopy:
         raise TwinError(f"avr-objcopy is not installed; it writes the flash image ({fw.INSTALL_AVR_GCC})")
-    with output_dir(args.out_dir, "firmware folder") as tmp:
-        shutil.copyfile(elf, os.path.join(tmp, "robot.elf"))
-        subprocess.run([objcopy, "-O", "ihex", "-R", ".eeprom", elf, os.path.join(tmp, "robot.hex")], check=True,
-                       capture_output=True, timeout=60)
+    flash_hex = _flash_hex(objcopy, elf)
+    with output_dir(args.out_dir, "firmware folder") as tmp:  # every write here is this program's: a failing one
+        shutil.copyfile(elf, os.path.join(tmp, "robot.elf"))  # names the folder and the cause
+        with open(os.path.join(tmp, "robot.hex"), "wb") as f:
+            f.write(flash_hex)
         with open(os.path.join(tmp, "config.hex"), "w") as f:
             f.write(fw.intel_hex(image))
     folder = os.path.abspath(args.out_dir)
@@ -56,3 +58,17 @@ def run(args: argparse.Namespace) -> int:
     out.say(f"wrote {folder}: robot.elf, robot.hex (flash {info.flash_bytes} B), config.hex (EEPROM {len(image)} B)")
     out.say(f"flash the robot (Pololu's USB AVR programmer speaks avrispv2): {flash}")
     return 0
+
+
+def _flash_hex(objcopy: str, elf: str) -> bytes:
+    """The flash image (Intel HEX) of ``elf``, made by avr-objcopy in a scratch folder of its own: its failures
+    are its own (reported with its message), never a half-written output."""
+    with tempfile.TemporaryDirectory(prefix="lf-firmware-") as scratch:
+        hex_path = os.path.join(scratch, "robot.hex")
+        done = subprocess.run([objcopy, "-O", "ihex", "-R", ".eeprom", elf, hex_path], capture_output=True, text=True,
+                              timeout=60)
+        if done.returncode != 0:
+            why = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])[-1]
+            raise TwinError(f"avr-objcopy could not make the flash image of {elf} ({why})")
+        with open(hex_path, "rb") as f:
+            return f.read()

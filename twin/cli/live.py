@@ -14,9 +14,9 @@ from twin.cli import options as o
 from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
 from twin.errors import TwinError
-from tuner.live.live_twin import LiveOptions, LiveTwin
-from tuner.live.replay import feed_line, replay_log, resume
-from twin.link.reader import FSYNC_INTERVAL_S, RETRY_S, DurableLog, LinkGaveUp, LinkStats, check_port, read_link
+from tuner.live import LiveOptions, LiveTwin, check_state, feed_line, replay_log, resume
+from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, check_port, read_link
+from twin.link.reader import FSYNC_INTERVAL_S, RETRY_S
 from tuner.recording import LiveRecording
 
 HELP = "run the twin beside the robot: compare laps, re-align when they disagree"
@@ -24,13 +24,15 @@ HELP = "run the twin beside the robot: compare laps, re-align when they disagree
 
 def add_parser(sub) -> None:
     p = sub.add_parser("live", help=HELP, description=(
-        "Reads wire telemetry from --port (a device path, socket://host:port, loop://, or a pty path), appends every "
-        f"byte received to --log as it arrives (fsynced every {FSYNC_INTERVAL_S:g} s and after each lap; the log is "
-        "locked against a second reader), compares each plausible lap with the twin, and re-aligns --param in the "
-        "background when the lap time differs by more than --threshold for --k-laps laps. A restart resumes from the "
+        "Reads wire telemetry from --port (a device path, a pty path, or socket://host:port), appends every "
+        f"byte received to --log as it arrives and nothing else (fsynced every {FSYNC_INTERVAL_S:g} s and after each "
+        "lap; locked against a second reader; where each connection ended is kept beside it in <log>.breaks), "
+        "compares each plausible lap with the twin, and re-aligns --param in the background when the lap time differs by more than --threshold for --k-laps laps. A restart resumes from the "
         "log and its state file. Exit status 1 when the link stayed down for --retry seconds; Ctrl-C or SIGTERM stop "
-        "cleanly (log synced, state saved, summary printed) with 130 or 143."))
-    p.add_argument("--port", metavar="PATH_OR_URL", help="serial device, pty path or pyserial URL")
+        "cleanly (log synced, state saved, summary printed) with 130 or 143; a log that cannot be written stops it "
+        "the same way, then exit 2 naming the log and the cause."))
+    p.add_argument("--port", metavar="PATH_OR_URL",
+                   help="serial device, pty path or pyserial URL (socket://HOST:PORT, rfc2217://…)")
     p.add_argument("--replay", metavar="LOG", help="instead of a link: a recorded telemetry log, as fast as it reads")
     o.add_world(p)
     o.add_values(p, "the twin's model-space parameter, repeatable")
@@ -76,9 +78,9 @@ def run(args: argparse.Namespace) -> int:
     on_lap = _lap_printer(out, address, rec)
     try:
         if args.replay:
-            summary, code = _replay(args, twin, options, on_lap, out), 0
+            summary, code, log_error = _replay(args, twin, options, on_lap, out), 0, None
         else:
-            summary, code = _link(args, twin, options, on_lap, out)
+            summary, code, log_error = _link(args, twin, options, on_lap, out)
     except BaseException as e:
         if rec is not None:
             rec.close(e)
@@ -88,6 +90,8 @@ def run(args: argparse.Namespace) -> int:
     summary["recording"] = rec.saved if rec is not None else None
     summary["gains_warning"] = warning
     out.document(summary)
+    if log_error is not None:
+        raise log_error  # after the summary: the last line names the log and the cause (exit 2)
     return code
 
 
@@ -127,11 +131,13 @@ def _replay(args, twin, options: LiveOptions, on_lap, out: Output) -> dict:
             "alignments": live.alignments, "replayed": os.path.abspath(args.replay)}
 
 
-def _link(args, twin, options: LiveOptions, on_lap, out: Output) -> tuple[dict, int]:
-    """Resume from the log, then read the link until --laps, --duration, Ctrl-C or SIGTERM; (summary, exit code)."""
+def _link(args, twin, options: LiveOptions, on_lap, out: Output) -> tuple[dict, int, LogWriteError | None]:
+    """Resume from the log, then read the link until --laps, --duration, Ctrl-C, SIGTERM or a log that cannot be
+    written; (summary, exit code, that log error)."""
     state = args.state or f"{args.log}.state.json"
-    stats, signalled, gave_up = LinkStats(), [], None
-    log_file = DurableLog(args.log)  # locked, a cut-off last line ended: before anything reads it
+    stats, signalled, gave_up, log_error = LinkStats(), [], None, None
+    check_state(state)  # a file that is not a state of ours is refused before the log is even opened
+    log_file = DurableLog(args.log)  # locked, a cut-off last line marked: before anything reads it
     try:
         live = LiveTwin(twin, options, state, on_lap)
         start_laps = resume(live, args.log)
@@ -144,18 +150,21 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output) -> tuple[dict, 
                           None if args.retry_forever else args.retry)
             except LinkGaveUp as e:
                 gave_up = str(e)
+            except LogWriteError as e:  # the log is the record: stop as cleanly as for a signal
+                log_error = e
         live.finish()  # (a second Ctrl-C interrupts this wait: the handlers are back)
     finally:
         log_file.close()
     summary = _summary(args, live, stats, start_laps, state, gave_up, signalled)
+    summary["log_error"] = str(log_error) if log_error else None
     out.say(f"{summary['laps']} laps ({summary['implausible_laps']} implausible), {stats.lines} lines "
             f"({stats.corrupted} corrupted), {stats.reconnects} reconnects; "
             f"{options.address} = {summary['value'][options.address]:.5g}; log {summary['log']}")
     if gave_up:
         out.say(f"exit status 1: {gave_up}")
     if signalled:
-        return summary, EXIT_INTERRUPTED if signalled[0] == signal.SIGINT else EXIT_TERMINATED
-    return summary, EXIT_NEGATIVE if gave_up else 0
+        return summary, EXIT_INTERRUPTED if signalled[0] == signal.SIGINT else EXIT_TERMINATED, log_error
+    return summary, EXIT_NEGATIVE if gave_up else 0, log_error
 
 
 def _stopper(args, live: LiveTwin, start_laps: int, signalled: list[int]):

@@ -60,7 +60,6 @@ def _sweep_on_cluster(args, twin, axes, seeds, out: Output):
         raise TwinError(f"--cluster: the nodes get parameter values, not files; track {args.track} is an image (use a "
                         f"built-in track: {', '.join(BUILTIN_SEGMENTS)}, or sweep it locally)")
     grid = grid_points(axes)
-    check_size(grid, seeds)
     twin.model()  # built here too: a robot or track that cannot be built fails before any task is sent
     base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": dict(twin.space.values)}
     bar = tqdm(total=len(grid), desc="sweep points", unit="point", disable=None)
@@ -76,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
     check_output_dir(args.out_dir, "sweep folder")
     recording.check_targets(args.save, args.view)
     axes = [parse_axis(a) for a in args.axes]
+    check_size(axes, args.seeds)  # from the counts alone: refused at once, before any grid or twin is built
     twin = o.twin_from_args(args)
     warning = o.gains_warning(args, twin)
     check_axes(twin, axes)

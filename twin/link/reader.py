@@ -4,14 +4,15 @@
   (``tcflush(TCIFLUSH)`` on a tty or pty, a ``recv`` loop on ``socket://``): a robot that talks first lost its
   first lines on every (re)connection. The flush is suppressed during ``open()``; a device path is opened with
   an exclusive lock, so a second reader cannot split the stream.
-* **Every byte reaches the log, durably.** Bytes are appended to the log exactly as received, unbuffered,
-  before any line is decoded, so a killed process (even SIGKILL) loses nothing it had read; a link that ends
-  keeps its last bytes (pyserial's ``read(n)`` dropped what it had read when the link ended). The log is
-  fsynced at least every ``FSYNC_INTERVAL_S`` (0.25 s) and after every lap event, so an OS crash or power
-  loss costs at most the last quarter second.
-* **One reader per log.** The log is locked (``flock``, exclusive, non-blocking); a second process is refused.
-* **No glued lines.** A log whose last line is partial (the process died mid-line), or a connection that ends
-  mid-line, gets a newline, so that line stays one corrupted line instead of joining the next one.
+* **Every byte reaches the log, durably, and nothing else.** Bytes are appended to the log
+  (:class:`twin.link.telemetry_log.DurableLog`) exactly as received, unbuffered, before any line is decoded, so a
+  killed process (even SIGKILL) loses nothing it had read; a link that ends keeps its last bytes (pyserial's
+  ``read(n)`` dropped what it had read when the link ended). The log is fsynced at least every
+  ``FSYNC_INTERVAL_S`` (0.25 s) and after every lap event, so an OS crash or power loss costs at most the last
+  quarter second. One reader per log: it is locked.
+* **No glued lines.** Where a connection ends (mid-line or not), the log's break index records the offset, out
+  of band: a line it cut off stays one corrupted line instead of joining the next one, when the log is read back.
+* **A log that cannot be written stops the reading** (:class:`LogWriteError`): the log is the record.
 * **Responsive.** A read returns what has arrived within ``READ_TIMEOUT_S`` (0.1 s), newline or not, so a stop
   request or ``--duration`` is seen within that; a line longer than :data:`twin.telemetry.wire.MAX_LINE` is logged but not
   kept in memory, and counts as one corrupted line.
@@ -25,8 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import errno
-import fcntl
+import io
 import logging
 import os
 import select
@@ -36,11 +36,11 @@ from typing import Callable
 
 from lf_common.errors import LineFollowerError
 from twin.errors import TwinError
+from twin.link.telemetry_log import FSYNC_INTERVAL_S, DurableLog, LogWriteError  # noqa: F401  (part of this face)
 from twin.telemetry.wire import LineSplitter
 
 log = logging.getLogger(__name__)
 
-FSYNC_INTERVAL_S = 0.25  # [s] at most this much of what was read is only in the OS's cache
 READ_TIMEOUT_S = 0.1  # [s] the longest a read waits: how late a stop request or --duration is seen
 READ_CHUNK = 65536  # [bytes] per read at most
 RETRY_S = 30.0  # [s] without a link before giving up
@@ -61,65 +61,14 @@ class LinkStats:
     implausible_laps: int = 0  # laps that failed the plausibility checks (see twin.telemetry.laps)
 
 
-class DurableLog:
-    """An append-only, locked, periodically fsynced log of the bytes received (see the module docstring)."""
-
-    def __init__(self, path: str):
-        self.path = path
-        try:
-            self.file = open(path, "ab", buffering=0)  # unbuffered: a write is in the OS before anything else
-        except IsADirectoryError:
-            raise TwinError(f"{path}: is a folder; name a file for the telemetry log") from None
-        except OSError as e:
-            raise TwinError(f"{path}: cannot open the telemetry log ({e.strerror or e})") from None
-        try:
-            fcntl.flock(self.file.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as e:
-            self.file.close()
-            if e.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise TwinError(f"{path}: another process is logging to it (it is locked); give each link its own --log") from None
-            raise TwinError(f"{path}: cannot lock the telemetry log ({e.strerror or e})") from None
-        self.synced = time.monotonic()
-        if self._ends_mid_line():
-            log.warning("%s: the last line was cut off (a crash?); ending it so it stays one corrupted line", path)
-            self.end_line()
-
-    def _ends_mid_line(self) -> bool:
-        with open(self.path, "rb") as f:
-            if f.seek(0, os.SEEK_END) == 0:
-                return False
-            f.seek(-1, os.SEEK_END)
-            return f.read(1) != b"\n"
-
-    def write(self, data: bytes) -> None:
-        view = memoryview(data)
-        while view:  # a raw write may take less than all
-            view = view[self.file.write(view):]
-
-    def end_line(self) -> None:
-        """End a cut-off line, so that the next bytes start a line of their own."""
-        self.write(b"\n")
-        self.sync()
-
-    def sync(self) -> None:
-        os.fsync(self.file.fileno())
-        self.synced = time.monotonic()
-
-    def maybe_sync(self) -> None:
-        if time.monotonic() - self.synced >= FSYNC_INTERVAL_S:
-            self.sync()
-
-    def close(self) -> None:
-        with contextlib.suppress(OSError):
-            self.sync()
-        self.file.close()  # releases the lock
-
-
 def check_port(url: str) -> None:
-    """Refuse, as bad input, what no retry can fix: an unknown scheme or a malformed URL, or a path that exists
-    and is not a device (a missing device path is fine: it may be plugged in later)."""
+    """Refuse, as bad input, what no retry can fix: an unknown scheme or a malformed URL, pyserial's loopback, or a
+    path that exists and is not a device (a missing device path is fine: it may be plugged in later)."""
     import serial
 
+    if url.lower().startswith("loop://"):  # it returns only what this process writes: no robot can ever reach it
+        raise TwinError(f"{url}: pyserial's loopback carries only what the reader itself writes, so no robot can "
+                        "reach it; give the robot's device, a pty path or socket://HOST:PORT")
     if "://" not in url:
         with contextlib.suppress(OSError):
             if not stat.S_ISCHR(os.stat(url).st_mode):
@@ -127,7 +76,7 @@ def check_port(url: str) -> None:
         return
     try:
         port = serial.serial_for_url(url, do_not_open=True)
-        if hasattr(port, "from_url"):  # socket://, loop://, rfc2217:// parse the rest of the URL only in open()
+        if hasattr(port, "from_url"):  # socket://, rfc2217:// parse the rest of the URL only in open()
             port.from_url(url)
     except Exception as e:  # parsing only: any failure is the URL's (pyserial 3.5 even raises KeyError for some)
         why = _first_line(e) if isinstance(e, (ValueError, serial.SerialException)) else "malformed"
@@ -198,23 +147,21 @@ def read_link(url: str, out: DurableLog, on_line: Callable[[bytes], bool], on_id
             backoff.failed(url, _first_line(e), stop)
             continue
         backoff.opened()
-        lines = LineSplitter()
+        lines, dropped = LineSplitter(), None
         try:
             _read_open_port(port, out, lines, on_line, on_idle, stats, stop, backoff)
         except (serial.SerialException, OSError) as e:
             log.warning("link %s dropped (%s); reopening", url, _first_line(e))
             stats.reconnects += 1
             dropped = _first_line(e)
-        else:
-            dropped = None
         finally:
-            if lines.cut():  # the link ended inside a line: end it in the log too, so nothing is glued to it
+            if lines.cut():  # the link ended inside a line: one corrupted line
                 stats.lines += 1
                 stats.corrupted += 1
-                out.end_line()
-            out.sync()
             with contextlib.suppress(Exception):
                 port.close()
+            # marked out of band (the log keeps only what came), so the next connection's bytes start a line
+            out.end_stream(f"dropped: {dropped}" if dropped is not None else "stopped")
             backoff.closed()
         if dropped is not None and not stop():
             backoff.failed(url, f"dropped: {dropped}", stop)
@@ -229,7 +176,8 @@ def read_available(port) -> bytes:
 
     try:
         fd = port.fileno()
-    except (AttributeError, NotImplementedError, serial.SerialException):  # loop:// and other fd-less ports
+    except (AttributeError, NotImplementedError, io.UnsupportedOperation, serial.SerialException):  # rfc2217:// and
+        # other ports without a file descriptor (UnsupportedOperation is an OSError: it is not a drop)
         return port.read(port.in_waiting or 1)
     ready, _, _ = select.select([fd], [], [], READ_TIMEOUT_S)
     if not ready:

@@ -10,6 +10,9 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import shutil
+import tempfile
+import threading
 from typing import Iterator, Sequence
 
 import numpy as np
@@ -18,13 +21,15 @@ import rerun.blueprint as rrb
 from PIL import Image
 
 from mjcf.track import FloorTexture, Track
-from lf_common.files import atomic_path, check_output_file, rrd_is_ours
+from lf_common.errors import OutputError
+from lf_common.files import atomic_file, check_output_file, rrd_is_ours
 from twin.viz import viewer
 from twin.errors import TwinError
 from twin.core.lap import LapResult
 
 APP_ID = "line-follower-twin"
 TIMELINE = "sim_time"
+RELAY_CLOSE_S = 120.0  # [s] for rerun to finish a recording once it is disconnected
 MAP_PIXEL_M = 0.004  # the floor image in the recording: 4 mm pixels keep a default-track file ~0.2 MB
 
 
@@ -106,14 +111,67 @@ def check_targets(save: str | None, view: bool) -> None:
             viewer.require_display()
 
 
+class _Relay:
+    """rerun's file sink writes into a named pipe; a thread copies what comes through into the recording's file.
+    A write that fails (a full disk) is kept and reported by :meth:`check` as an :class:`OutputError` naming the
+    file and the cause, and the pipe is still drained, so rerun never sees a failure: its own file sink, failing,
+    said only "File-writer thread shut down prematurely", printed its own lines after ours, and hung the next
+    flush for good. (Its in-memory stream would hold a long session in memory, and pieces of it read one by one
+    do not make a valid file.)"""
+
+    def __init__(self, path: str, file):
+        self.path, self.file, self.error, self.opened = path, file, None, threading.Event()
+        self.folder = tempfile.mkdtemp(prefix="lf-recording-")
+        self.pipe = os.path.join(self.folder, "recording.rrd")
+        os.mkfifo(self.pipe, 0o600)
+        self.thread = threading.Thread(target=self._copy, name="recording-writer", daemon=True)
+        self.thread.start()
+
+    def _copy(self) -> None:
+        with open(self.pipe, "rb", buffering=0) as pipe:  # returns once rerun has opened its end
+            self.opened.set()
+            while chunk := pipe.read(1 << 16):
+                if self.error is None:
+                    try:
+                        self.file.write(chunk)
+                    except OSError as e:
+                        self.error = e
+
+    def check(self) -> None:
+        if self.error is not None:
+            raise OutputError(f"{self.path}: cannot write the recording ({self.error.strerror or self.error})")
+
+    def close(self) -> None:
+        """Once rerun has let go of the pipe: wait for its last bytes, and remove the pipe."""
+        if not self.opened.is_set():  # rerun never opened it (it failed first): let the thread's open return
+            with contextlib.suppress(OSError):
+                os.close(os.open(self.pipe, os.O_WRONLY | os.O_NONBLOCK))
+        self.thread.join(RELAY_CLOSE_S)
+        shutil.rmtree(self.folder, ignore_errors=True)
+        if self.thread.is_alive() and self.error is None:
+            self.error = OSError(0, f"rerun did not finish it within {RELAY_CLOSE_S:g} s")
+
+
+_relays: dict[rr.RecordingStream, _Relay] = {}
+
+
+def flush(rec: rr.RecordingStream) -> None:
+    """Send what was logged to the viewer and to the file; a write that failed is reported now (see
+    :func:`recording`)."""
+    rec.flush()
+    if rec in _relays:
+        _relays[rec].check()
+
+
 @contextlib.contextmanager
 def recording(save: str | None, view: bool, blueprint: rrb.Blueprint, app_id: str = APP_ID) -> Iterator[rr.RecordingStream | None]:
     """A recording streamed to a viewer (``view``) and/or saved to ``save``; None when neither is asked.
 
     The file is written under a temporary name and renamed into place when the ``with`` block completes, and
-    replaces only a recording this program wrote; a failure leaves no file. With ``view`` alone nothing is
-    written to disk: the data streams to the viewer. With ``view`` but no display, the recording is saved and
-    then the missing display is reported (TwinError): the work is kept, the window could not open.
+    replaces only a recording this program wrote; a failure leaves no file, and a write that fails is an
+    :class:`OutputError` naming the file and the cause. With ``view`` alone nothing is written to disk: the data
+    streams to the viewer. With ``view`` but no display, the recording is saved and then the missing display is
+    reported (TwinError): the work is kept, the window could not open.
     """
     if not save and not view:
         yield None
@@ -121,18 +179,24 @@ def recording(save: str | None, view: bool, blueprint: rrb.Blueprint, app_id: st
     check_targets(save, view)
     show = view and viewer.has_display()
     with contextlib.ExitStack() as stack:
-        sinks = []
-        if save:
-            sinks.append(rr.FileSink(stack.enter_context(atomic_path(save, rrd_is_ours, "recording"))))
-        if show:
-            sinks.append(rr.GrpcSink(viewer.spawn_for_stream()))
+        relay = _Relay(save, stack.enter_context(atomic_file(save, rrd_is_ours, "recording", binary=True))) if save else None
         rec = rr.RecordingStream(app_id)
-        rec.set_sinks(*sinks, default_blueprint=blueprint)
         try:
+            sinks = [rr.FileSink(relay.pipe)] if relay else []
+            if show:
+                sinks.append(rr.GrpcSink(viewer.spawn_for_stream()))
+            if relay:
+                _relays[rec] = relay
+            rec.set_sinks(*sinks, default_blueprint=blueprint)
             yield rec
+            flush(rec)
         finally:
-            rec.flush()
-            rec.disconnect()
+            rec.disconnect()  # rerun ends the file and lets go of the pipe
+            if relay:
+                _relays.pop(rec, None)
+                relay.close()
+        if relay:
+            relay.check()  # the last bytes too, before the file is renamed into place
     if view and not show:
         viewer.require_display(os.path.abspath(save))  # saved above; now say why no window opened
 

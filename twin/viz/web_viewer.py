@@ -23,7 +23,11 @@ from twin.viz.viewer import check_recording, viewer_executable
 
 CHROMIUM_ARGS = ("--no-sandbox", "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
                  "--ignore-gpu-blocklist")
-SERVER_START_S = 20.0  # [s] for `rerun --serve-web` to answer on its port
+# Waits are for conditions (a port answers, a frame is drawn, a screenshot is taken), each bounded so nothing
+# hangs; the bounds are for a busy machine (two cores shared with other work), where SwiftShader draws a
+# 3200×2000 frame in software: a fixed 30 s (Playwright's default) was not always enough for one screenshot.
+SERVER_START_S = 120.0  # [s] for `rerun --serve-web` to answer on its port
+BROWSER_TIMEOUT_S = 300.0  # [s] to start the browser, load the page, draw a frame, take one screenshot
 
 
 def chromium_executable() -> str | None:
@@ -74,11 +78,22 @@ def headless_chromium() -> Iterator[object]:
     except ImportError:
         raise TwinError("web viewer: the playwright package is missing (pip install -e '.[test]')") from None
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=executable, args=list(CHROMIUM_ARGS))
+        browser = p.chromium.launch(executable_path=executable, args=list(CHROMIUM_ARGS),
+                                    timeout=BROWSER_TIMEOUT_S * 1000)
         try:
             yield browser
         finally:
             browser.close()
+
+
+def next_frame(page) -> None:
+    """Wait until the page has drawn its next animation frame (the viewer has had its turn to render)."""
+    page.wait_for_function("() => true", polling="raf", timeout=BROWSER_TIMEOUT_S * 1000)
+
+
+def screenshot(page, png: str) -> bytes:
+    """A screenshot of ``page`` to ``png`` (and its bytes), waiting as long as a busy machine needs."""
+    return page.screenshot(path=png, timeout=BROWSER_TIMEOUT_S * 1000)
 
 
 def screenshot_when_settled(page, png: str, min_wait_s: float = 6.0, timeout_s: float = 60.0,
@@ -89,7 +104,7 @@ def screenshot_when_settled(page, png: str, min_wait_s: float = 6.0, timeout_s: 
     start, last = time.monotonic(), None
     while True:
         time.sleep(every_s)
-        digest = hashlib.sha256(page.screenshot(path=png)).digest()
+        digest = hashlib.sha256(screenshot(page, png)).digest()
         now = time.monotonic() - start
         if digest == last and now >= min_wait_s:
             return True
