@@ -34,7 +34,7 @@ ROWS = [
     (f"build {OVAL} -o {{full}}/w.xml", 2, ["{full}/w", "No space left on device"]),
     ("generate --out-dir .", 2, ["current folder"]),
     ("generate --out-dir {full}/r", 2, ["{full}/r", "No space left on device"]),
-    (f"convert {{robot.urdf}} {OVAL} -o {{full}}/w.xml", 2, ["{full}/w", "No space left on device"]),
+    (f"convert {{robot.urdf}} --sensor-mount base:0.05,0,-0.01 {OVAL} -o {{full}}/w.xml", 2, ["{full}/w", "No space left on device"]),
 ]
 
 
