@@ -5,15 +5,16 @@ influences kept for diagnose and align."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from lf_common.errors import LineFollowerError
+from twin.cli.main import main
 from twin.core import DigitalTwin
 from twin.core.lap import LapResult
 from twin.model.partial_models import default_space
@@ -26,8 +27,6 @@ from tuner.sensitivity import laps as lap_model
 from tuner.sensitivity.laps import fill_failed, lap_outputs
 from tuner.sensitivity.analysis import MIN_TOTAL
 from tuner.sensitivity.relations import CONFIRMED, NEGLIGIBLE, UNDECLARED, UNMEASURABLE, declared_path
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # --- the method on a function of known indices (Ishigami & Homma 1990; Sobol' & Levitan 1999 for the indices)
 A, B = 7.0, 0.1
@@ -132,7 +131,7 @@ def _analysis(space, totals: dict, mu: dict, lap_s: float = 13.0) -> Analysis:
                 infl.append(Influence(f.address, o, "sobol", t, (t - 0.02, t + 0.02), t, (t - 0.02, t + 0.02), m,
                                       (m * 0.9, m * 1.1), m))
             else:
-                infl.append(Influence(f.address, o, "morris", None, None, None, None, m, (0.0, m), m))
+                infl.append(Influence(f.address, o, "morris", None, None, None, None, m, (0.5 * m, 1.5 * m), m))
     summary = {o: {"mean": 1.0, "std": 0.1, "min": 0.5, "max": 1.5, "median": 1.0} for o in outputs}
     summary["lap_time_s"]["median"] = lap_s
     return Analysis(tuple(factors), tuple(outputs), tuple(infl), tuple(sorted({p for p, _ in totals})), 288, 2560, 256,
@@ -170,11 +169,14 @@ def test_learned_influences_are_kept_per_configuration_and_fall_back_explicitly(
     a = _analysis(twin.space, {("control.v_max", "lap_time_s"): 0.6, ("motor.supply_voltage", "lap_time_s"): 0.3},
                   {("control.v_max", "lap_time_s"): 3.0, ("motor.supply_voltage", "lap_time_s"): 2.0,
                    ("motor.K", "lap_time_s"): 0.5, ("motor.R_M", "lap_time_s"): 0.1, ("motion.mu", "lap_time_s"): 0.02})
+    with pytest.raises(LineFollowerError, match="only an analysis of the default parameters"):
+        store(twin, dataclasses.replace(a, factors=a.factors[:3]))
     path = store(twin, a)
     assert os.path.dirname(path) == os.path.join(str(tmp_path), "learned")
     back, source = load(twin)
     assert back == a and path in source
-    # the physical causes that move the lap time by ≥ 1 % (0.13 s), largest first; never a setting (v_max)
+    # the physical causes that surely move the lap time by ≥ 1 % (0.13 s: μ*'s lower end), largest first; never a
+    # setting (v_max); R_M's μ* is 0.1 s (0.05 s at its lower end)
     assert diagnosis_candidates(a) == ["motor.supply_voltage", "motor.K"]
     assert default_candidates(twin)[0] == ("motor.supply_voltage", "motor.K")
     warn, src = lap_time_warning(twin, "motion.mu", [], 0.005)
@@ -220,23 +222,21 @@ def test_controlled_twin_case_lap_time_is_governed_by_the_top_speed():
     assert "control.v_max" in a.selected and a.notes[0].startswith("completed: the same in every run")
 
 
-def test_same_seed_gives_bit_identical_indices_for_any_worker_count(tmp_path, monkeypatch):
+def test_same_seed_gives_bit_identical_indices_for_any_worker_count(tmp_path, monkeypatch, capsys):
     """The command with one thread against the library with two threads and batches of 5 laps: the same indices,
     bit for bit (JSON carries floats exactly)."""
-    env = {**os.environ, "TWIN_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": ROOT}
-    r = subprocess.run([sys.executable, "-m", "twin.run", "graph", "--learn", "--track", "circle", "--param",
-                        "control.v_max", "--bounds", "control.v_max=0.5,0.7", "--param", "motion.mu", "--samples", "8",
-                        "--seed", "3", "--workers", "1", "--json", "--out-dir", str(tmp_path / "out"),
-                        "--save", str(tmp_path / "learned.rrd")], capture_output=True, text=True, timeout=600, env=env)
-    assert r.returncode == 0, r.stderr
-    doc = json.loads(r.stdout)
+    monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))
+    assert main(["graph", "--learn", "--track", "circle", "--param", "control.v_max", "--bounds",
+                 "control.v_max=0.5,0.7", "--param", "motion.mu", "--samples", "8", "--seed", "3", "--workers", "1",
+                 "--json", "-q", "--out-dir", str(tmp_path / "out"), "--save", str(tmp_path / "learned.rrd")]) == 0
+    r = capsys.readouterr()
+    doc = json.loads(r.out)
     keys = {"parameter", "output", "first", "first_interval", "total", "total_interval", "method"}
     assert doc["influences"] and all(keys <= set(i) for i in doc["influences"])
     assert doc["laps"] == doc["morris_laps"] + doc["sobol_laps"] and doc["wall_s"] > 0
     assert doc["stored"] is None  # a chosen --param set is not kept for diagnose and align
     for f in ("json", "csv", "graph_png", "indices_png", "recording"):
         assert os.path.isfile(doc["files"][f]), f
-    monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setattr(lap_model, "CHUNK_LAPS", 5)
     twin = DigitalTwin(track="circle")
     again = learn(twin, chosen_factors(twin.space, ["control.v_max", "motion.mu"], {"control.v_max": (0.5, 0.7)}),
@@ -250,9 +250,7 @@ def test_same_seed_gives_bit_identical_indices_for_any_worker_count(tmp_path, mo
     (["--learn", "--samples", "100"], "power of two"),
     (["--learn", "--param", "cad.L"], "rebuilds the robot"),
     (["--learn", "--bounds", "control.kp=1,2"], "goes with --param")])
-def test_bad_learning_input_is_one_line_and_exit_2(args, match, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "twin.run", "graph", *args, "--out-dir", str(tmp_path / "o")]
-                       if "--learn" in args else [sys.executable, "-m", "twin.run", "graph", *args],
-                       capture_output=True, text=True, timeout=120, env={**os.environ, "PYTHONPATH": ROOT})
-    assert r.returncode == 2 and r.stderr.startswith("error: ") and r.stderr.count("\n") == 1, r.stderr
-    assert match in r.stderr
+def test_bad_learning_input_is_one_line_and_exit_2(args, match, tmp_path, capsys):
+    assert main(["graph", *args, *(["--out-dir", str(tmp_path / "o")] if "--learn" in args else [])]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and match in err, err

@@ -79,13 +79,15 @@ def indices_chart(path: str, analysis: Analysis, title: str) -> None:
         rows = [analysis.influence(n, o) for n in names]
         if not names or all(r is None or r.total is None for r in rows):
             ax.text(0.5, 0.5, "did not vary", ha="center", va="center", transform=ax.transAxes, fontsize=9)
+        labelled = False
         for y, r in zip(ys, rows):
             if r is None or r.total is None:
                 continue
-            ax.barh(y + 0.18, r.total, height=0.34, color="tab:blue", label="total ST" if y == ys[0] else None)
+            ax.barh(y + 0.18, r.total, height=0.34, color="tab:blue", label=None if labelled else "total ST")
             ax.errorbar(r.total, y + 0.18, xerr=[[r.total - r.total_interval[0]], [r.total_interval[1] - r.total]],
                         fmt="none", ecolor="k", lw=0.8, capsize=2)
-            ax.barh(y - 0.18, r.first, height=0.34, color="tab:orange", label="first S1" if y == ys[0] else None)
+            ax.barh(y - 0.18, r.first, height=0.34, color="tab:orange", label=None if labelled else "first S1")
+            labelled = True
             ax.errorbar(r.first, y - 0.18, xerr=[[r.first - r.first_interval[0]], [r.first_interval[1] - r.first]],
                         fmt="none", ecolor="k", lw=0.8, capsize=2)
         ax.set_title(o, fontsize=9)
@@ -93,7 +95,7 @@ def indices_chart(path: str, analysis: Analysis, title: str) -> None:
         ax.axvline(0, color="0.5", lw=0.5)
         ax.grid(axis="x", alpha=0.3)
     axes[0].set_yticks(ys, names, fontsize=8)
-    handles, labels = axes[0].get_legend_handles_labels()
+    handles, labels = max((ax.get_legend_handles_labels() for ax in axes), key=lambda hl: len(hl[0]))
     if handles:
         axes[-1].legend(handles, labels, fontsize=8, loc="lower right")
     fig.suptitle(title + " (bars: Sobol' index, whiskers: 95 % bootstrap interval)", fontsize=10)

@@ -117,4 +117,9 @@ def learn(twin: DigitalTwin, factors: Sequence[Factor] | None = None, samples: i
              "failures": dict(sorted(model.failures.items())), "left_out": dict(left_out),
              "nominal": {f.address: twin.space.get(f.address) for f in factors}, "track": twin.track.name,
              "laps_per_s": model.laps / wall if wall > 0 else math.inf}
-    return dataclasses.replace(result, extra=extra)
+    notes = result.notes
+    if failed:
+        kinds = ", ".join(f"{n} {k}" for k, n in extra["failures"].items())
+        notes += (f"{failed} of {model.laps} laps failed ({kinds}): completed says what makes them fail; their lap time, "
+                  "energy and cross-track error are the completed laps' median",)
+    return dataclasses.replace(result, extra=extra, notes=notes)

@@ -75,6 +75,9 @@ def is_default(twin: DigitalTwin, analysis: Analysis) -> bool:
 def store(twin: DigitalTwin, analysis: Analysis) -> str:
     """Keep a default analysis of this twin for ``diagnose`` and ``align``; returns the file. Raises LineFollowerError
     when the cache folder cannot be written."""
+    if not is_default(twin, analysis):
+        raise LineFollowerError("learned influences: only an analysis of the default parameters over their default "
+                                "ranges is kept (it is what diagnose and align look up)")
     path = path_for(twin)
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
@@ -89,7 +92,7 @@ def load(twin: DigitalTwin) -> tuple[Analysis | None, str]:
     why there is none."""
     path = path_for(twin)
     if not os.path.isfile(path):
-        return None, "no learned influences for this twin's configuration (graph --learn measures them)"
+        return None, "no learned influences for this twin's configuration; graph --learn measures them"
     try:
         doc = read_json(path, MAX_BYTES, "learned influences")
         if doc.get("config") != json.loads(json.dumps(config_record(twin), default=str)):
@@ -114,24 +117,29 @@ def _lap_s(analysis: Analysis) -> float:
 
 
 def diagnosis_candidates(analysis: Analysis, limit: int = CANDIDATES_MAX) -> list[str]:
-    """The physical parameters (not settings) that move the lap time by at least :data:`CANDIDATE_SHARE` of it over
-    their physical range (Morris μ*), the largest first, at most ``limit``."""
+    """The physical parameters (not settings) that surely move the lap time over their physical range: the lower end
+    of their Morris μ*'s 95 % interval is at least :data:`CANDIDATE_SHARE` of the lap; the largest μ* first, at most
+    ``limit``."""
     lap = _lap_s(analysis)
-    return [a for a, mu, _ in lap_time_governors(analysis, physical_only=True) if mu >= CANDIDATE_SHARE * lap][:limit]
+    rows = [i for i in analysis.influences if i.output == "lap_time_s" and not is_setting(i.parameter)
+            and i.mu_star_interval[0] >= CANDIDATE_SHARE * lap]
+    return [i.parameter for i in sorted(rows, key=lambda i: -i.mu_star)][:limit]
 
 
 def barely_moves(analysis: Analysis, address: str, threshold: float) -> str | None:
-    """A warning when the parameter moves the lap time by less than ``threshold`` of it over its range, or None
-    (also None when the analysis did not vary it)."""
+    """A warning when the parameter surely moves the lap time by less than ``threshold`` of it over its range (the
+    upper end of its μ*'s 95 % interval), or None (also when the analysis did not vary it)."""
     infl = analysis.influence(address, "lap_time_s")
     factor = next((f for f in analysis.factors if f.address == address), None)
     lap = _lap_s(analysis)
-    if infl is None or factor is None or not infl.mu_star < threshold * lap:
+    if infl is None or factor is None or not infl.mu_star_interval[1] < threshold * lap:
         return None
     top = [f"{a} ({mu:.3g} s)" for a, mu, _ in lap_time_governors(analysis)[:3]]
-    return (f"{address} barely moves the lap time: over {factor.lower:.4g}–{factor.upper:.4g} {factor.unit} it changes "
-            f"it by {infl.mu_star:.3g} s on average ({100 * infl.mu_star / lap:.2g} % of {lap:.3g} s; Morris μ*, learned "
-            f"by graph --learn), so a lap time hardly tells its value; the lap time is governed by {', '.join(top)}")
+    unit = "" if factor.unit == "-" else f" {factor.unit}"
+    return (f"{address} barely moves the lap time: across {factor.lower:.4g}–{factor.upper:.4g}{unit} it changes it by "
+            f"{infl.mu_star:.2g} s ({100 * infl.mu_star / lap:.2g} % of a {lap:.3g} s lap; Morris μ*, "
+            f"learned by graph --learn), so a lap time hardly tells its value; the lap time is governed by "
+            f"{', '.join(top)}")
 
 
 def scan_spread(twin: DigitalTwin, address: str, points: Sequence[tuple[float, float | None]]) -> tuple[float, tuple[float, float]] | None:
@@ -164,5 +172,5 @@ def lap_time_warning(twin: DigitalTwin, address: str, points: Sequence[tuple[flo
     if fraction >= threshold:
         return None, "scan"
     return (f"{address} barely moves the lap time: over its physical range {lo:.4g}–{hi:.4g} the alignment's laps differ "
-            f"by {100 * fraction:.2g} % (less than {100 * threshold:g} %), so a lap time hardly tells its value ({source}; "
-            "what governs the lap time is measured by graph --learn)"), "scan"
+            f"by {100 * fraction:.2g} % (less than {100 * threshold:g} %), so a lap time hardly tells its value (judged "
+            f"from those laps: {source})"), "scan"

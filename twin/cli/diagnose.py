@@ -62,15 +62,15 @@ def run(args: argparse.Namespace) -> int:
     out.document(doc)
     nominal = f"{report.nominal_lap_time_s:.3f} s" if report.nominal_lap_time_s else "no lap"
     out.say(f"measured {report.measured_lap_time_s:.3f} s; the twin as it is: {nominal}")
-    out.say(f"{'rank':>4}  {'cause':44s} {'value':>10} {'change':>8}  {'plausible range':>20}"
+    out.say(f"{'rank':>4}  {'cause':52s} {'value':>10} {'change':>8}  {'plausible range':>20}"
             + ("  trace rms" if tel is not None else ""))
     for i, d in enumerate(report.candidates, start=1):
         if not d.explained:
-            out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':44s} {'–':>10} {'':>8}  does not explain it")
+            out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':52s} {'–':>10} {'':>8}  does not explain it")
             continue
         rng = f"[{d.plausible_range[0]:.3g}, {d.plausible_range[1]:.3g}]" + ("" if d.plausible else " ✗")
         rms = f"  {d.trace_rms_radps:.2f} rad/s" if d.trace_rms_radps is not None else ""
-        out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':44s} {d.value:>10.4g} {d.change * 100:>+7.1f}%  {rng:>20}{rms}")
+        out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':52s} {d.value:>10.4g} {d.change * 100:>+7.1f}%  {rng:>20}{rms}")
     for s in report.skipped:
         out.say(f"skipped {s}")
     if report.joint is not None:
