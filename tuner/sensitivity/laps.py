@@ -14,9 +14,10 @@ A failed lap has no lap time, and its energy and cross-track error stop where it
 dominate every variance: the indices would repeat the completion's, with intervals as wide as the indices.)
 
 Every lap runs with the same noise seed (common random numbers): the outputs differ by the parameters alone. Laps
-run :data:`CHUNK_LAPS` at a time: each lap with its own motor and friction values holds its own copy of the
-model (~17 MB with the default track's texture), so a chunk bounds the memory; each lap is bit-identical to running
-it alone, so neither the chunk nor the thread count changes a result.
+run in batches of at most :data:`CHUNK_LAPS`: each lap with its own motor and friction values holds its own copy of
+the model (~17 MB with the default track's texture), so a batch holds at most :data:`MEMORY_BUDGET` bytes of them
+(fewer laps for a larger texture); each lap is bit-identical to running it alone, so neither the batch size nor the
+thread count changes a result.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from tuner.sensitivity.ranges import Factor, default_factors
 
 OUTPUTS = ("lap_time_s", "completed", "energy_j", "max_cross_track_m")
 CHUNK_LAPS = 64
+MEMORY_BUDGET = 1.5e9  # [bytes] of model copies in one batch
 SAMPLES = 256  # Saltelli's N of the default analysis
 TRAJECTORIES = 12  # Morris trajectories of the default analysis
 MAX_SOBOL = 8  # factors that get Sobol' indices at most
@@ -78,8 +80,9 @@ class LapModel:
 
     def __call__(self, addresses: Sequence[str], X: np.ndarray) -> dict[str, np.ndarray]:
         rows: list[dict[str, float]] = []
-        for start in range(0, len(X), CHUNK_LAPS):
-            variants = [{a: float(v) for a, v in zip(addresses, x)} for x in X[start:start + CHUNK_LAPS]]
+        chunk = min(CHUNK_LAPS, max(8, int(MEMORY_BUDGET // max(self.twin.model().nbuffer, 1))))
+        for start in range(0, len(X), chunk):
+            variants = [{a: float(v) for a, v in zip(addresses, x)} for x in X[start:start + chunk]]
             for r in run_laps(self.twin, variants, seed=self.seed, nthread=self.nthread, keep_traces=False):
                 rows.append(lap_outputs(r))
                 if not r.completed:

@@ -8,7 +8,8 @@ a description's path and content), the track (a name, or an image's path and con
 influences of its twin reads that file (:func:`load`); when there is none (another configuration, never learned, a
 damaged file) it says so and falls back explicitly:
 
-* ``diagnose``: the four candidate causes of today (:data:`tuner.align.diagnose.DEFAULT_CANDIDATES`);
+* ``diagnose``: its four default causes, grip, battery, winding resistance and payload
+  (:data:`tuner.align.diagnose.DEFAULT_CANDIDATES`);
 * ``align``: the lap times its own scan ran over the parameter's physical range (:func:`scan_spread`), no extra laps.
 """
 
@@ -104,11 +105,9 @@ def load(twin: DigitalTwin) -> tuple[Analysis | None, str]:
     return analysis, f"learned influences of this twin ({path})"
 
 
-def lap_time_governors(analysis: Analysis, physical_only: bool = False) -> list[tuple[str, float, float | None]]:
-    """(parameter, μ* [s], total index or None) on the lap time, the largest μ* first; ``physical_only``: without
-    the settings a person chooses."""
-    rows = [(i.parameter, i.mu_star, i.total) for i in analysis.influences
-            if i.output == "lap_time_s" and not (physical_only and is_setting(i.parameter))]
+def lap_time_governors(analysis: Analysis) -> list[tuple[str, float, float | None]]:
+    """(parameter, μ* [s], total index or None) on the lap time, the largest μ* first."""
+    rows = [(i.parameter, i.mu_star, i.total) for i in analysis.influences if i.output == "lap_time_s"]
     return sorted(rows, key=lambda r: -r[1])
 
 

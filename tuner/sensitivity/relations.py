@@ -105,10 +105,15 @@ def compare(space: ModelSpace, analysis: Analysis) -> list[Relation]:
                 why = declared_path(space, model, o)
                 out.append(Relation(address, o, status, infl.total, why))
             elif decl:
-                why = ("screened out: μ* below a tenth of the largest" if infl.method == "morris"
-                       else f"total index {infl.total:.3f}, interval from {infl.total_interval[0]:.3f}")
-                if infl.total is None and not analysis.summary.get(o):
-                    why = "the output has no values"
+                stats = analysis.summary.get(o) or {}
+                if not stats:
+                    why = "the output has no values (no lap completed)"
+                elif stats["std"] == 0:
+                    why = "the output did not vary: every lap gave the same"
+                elif infl.method == "morris":
+                    why = f"screened out by Morris (μ* {infl.mu_star:.3g})"
+                else:
+                    why = f"total index {infl.total:.3f} [{infl.total_interval[0]:.3f}, {infl.total_interval[1]:.3f}]"
                 out.append(Relation(address, o, NEGLIGIBLE, infl.total, why))
     return out
 
