@@ -1,6 +1,7 @@
 """Diagnosis of a robot slower (or faster) than its twin: which single change to the twin explains it best.
 
-For each candidate cause (default: tyre grip, battery, motor winding resistance, payload):
+For each candidate cause (default: the physical parameters that the twin's learned influences say move the lap time
+most, :func:`default_candidates`; without them tyre grip, battery, motor winding resistance, payload):
 
 1. the aligner (:func:`tuner.align.lap_time.align_lap_time`, refined scan, every disjoint range) finds the value that
    explains the measured lap time within the candidate's search range, nearest the twin's own value; a
@@ -31,6 +32,8 @@ from twin.telemetry.jsonl import Telemetry
 from tuner.align.lap_time import LapTimeAlignment, align_lap_time
 from tuner.align.trace import TraceAlignment, align_telemetry, wheel_residuals
 from tuner.search.space import TunerError
+from tuner.sensitivity import ASSUMED, PHYSICAL_RANGES, diagnosis_candidates
+from tuner.sensitivity import load as load_learned
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,21 +46,45 @@ class Cause:
     source: str
 
 
+def _documented(what: str, search: tuple[float, float], address: str) -> Cause:
+    r = PHYSICAL_RANGES[address]
+    return Cause(what, search, (r.low, r.high), r.source)
+
+
 CANDIDATES: dict[str, Cause] = {
-    "motion.mu": Cause("tyre grip", (1 / 6, 2.2), (1 / 3, 4 / 3),
-                       "clean rubber on a laminated board ≈ 0.9 (the model's nominal); dust or worn tyres take "
-                       "it down to a third, a sticky floor up a third"),
-    "motor.supply_voltage": Cause("battery voltage", (0.5, 1.2), (4.0 / 6.0, 6.2 / 6.0),
-                                  "four AAA cells: 4 × 1.0 V at the end of a NiMH discharge (Panasonic HHR70AAAJ) to "
-                                  "4 × 1.55 V fresh alkaline (Pololu 3pi+ guide §5.7: 6 V nominal)"),
-    "motor.R_M": Cause("motor winding resistance", (0.5, 3.0), (0.9, 1.5),
-                       "copper's resistance rises 0.39 %/K (a winding 50 K warmer: +20 %); worn brushes add contact "
-                       "resistance"),
-    "cad.m_c": Cause("payload (chassis mass)", (0.8, 3.0), (1.0, 2.0),
-                     "a payload up to the chassis' own mass (a second battery pack, a camera)"),
+    "motion.mu": _documented("tyre grip", (1 / 6, 2.2), "motion.mu"),
+    "motor.supply_voltage": _documented("battery voltage", (0.5, 1.2), "motor.supply_voltage"),
+    "motor.R_M": _documented("motor winding resistance", (0.5, 3.0), "motor.R_M"),
+    "cad.m_c": _documented("payload (chassis mass)", (0.8, 3.0), "cad.m_c"),
 }
 DEFAULT_CANDIDATES = tuple(CANDIDATES)
-GENERIC = Cause("parameter", (1 / 3, 3.0), (0.8, 1.25), "no documented range: ±25 % assumed")
+GENERIC = Cause("parameter", (1 / 3, 3.0), (ASSUMED.low, ASSUMED.high), ASSUMED.source)
+
+
+def cause_of(twin: DigitalTwin, address: str) -> Cause:
+    """A candidate's ranges: its own (:data:`CANDIDATES`), else its documented physical range
+    (:data:`tuner.sensitivity.PHYSICAL_RANGES`) searched a factor of 3 either way, else :data:`GENERIC`."""
+    if address in CANDIDATES:
+        return CANDIDATES[address]
+    what = twin.space.parameter(address).description or GENERIC.what
+    r = PHYSICAL_RANGES.get(address)
+    if r is None:
+        return dataclasses.replace(GENERIC, what=what)
+    return Cause(what, (min(GENERIC.search[0], r.low), max(GENERIC.search[1], r.high)), (r.low, r.high), r.source)
+
+
+def default_candidates(twin: DigitalTwin) -> tuple[tuple[str, ...], str]:
+    """The candidate causes when none are given, and where they come from: the physical parameters the learned
+    influences of this twin say move the lap time (``graph --learn``, :func:`tuner.sensitivity.diagnosis_candidates`),
+    else :data:`DEFAULT_CANDIDATES`."""
+    analysis, source = load_learned(twin)
+    if analysis is None:
+        return DEFAULT_CANDIDATES, f"the four default candidates: {source}"
+    learned = tuple(diagnosis_candidates(analysis))
+    if not learned:
+        return DEFAULT_CANDIDATES, (f"the four default candidates: the {source} name no physical parameter that moves "
+                                    "the lap time by 1 % over its range")
+    return learned, f"the causes that move the lap time most, from the {source}"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,7 +135,7 @@ def _trace_rms(twin: DigitalTwin, address: str, value: float, tel: Telemetry, se
 
 def diagnose_one(twin: DigitalTwin, measured: float, address: str, tel: Telemetry | None = None, seed: int = 0,
                  nthread: int = 0) -> Diagnosis:
-    cause = CANDIDATES.get(address, GENERIC)
+    cause = cause_of(twin, address)
     p = twin.space.parameter(address)
     nominal = twin.space.get(address)
     if nominal <= 0:

@@ -17,6 +17,7 @@ from twin.telemetry.jsonl import read_telemetry
 from tuner.align.lap_time import ACCEPT, TOLERANCE, align_lap_time
 from tuner.align.trace import align_telemetry
 from tuner.recording import save_alignment, save_trace_alignment
+from tuner.sensitivity import lap_time_warning
 
 HELP = "align a parameter (default motion.mu) to a measured lap time, or parameters to a recorded run"
 
@@ -63,12 +64,17 @@ def _lap_time(args: argparse.Namespace) -> int:
     bounds = o.parse_bounds(args.bounds, parameters).get(address)
     r = align_lap_time(twin, args.measured_lap_time, address, bounds=bounds, seed=args.seed)
     summary = {**r.summary(), "recording": None, "out": None}
+    # does the parameter move the lap time at all? (the learned influences, else this alignment's own laps)
+    summary["sensitivity_warning"], summary["sensitivity_source"] = lap_time_warning(
+        twin, address, [(p.value, p.lap_time_s) for p in r.trace], ACCEPT)
     if args.out and r.explained:
         summary["out"] = save_values(args.out, {address: r.value}, source="align --measured-lap-time",
                                      measured_lap_time_s=r.measured_lap_time_s, simulated_lap_time_s=r.simulated_lap_time_s)
     summary["recording"] = save_alignment(args.save, args.view, r, twin.space.parameter(address).unit)
     out.document(summary)
     out.say(r.message)
+    if summary["sensitivity_warning"]:
+        out.say("warning: " + summary["sensitivity_warning"])
     if r.reachable_intervals_s:
         spans = " or ".join(f"{a:.3f}–{b:.3f} s" for a, b in r.reachable_intervals_s)
         out.say(f"lap times {r.parameter} in [{r.bounds[0]:g}, {r.bounds[1]:g}] can give with these gains: {spans}")

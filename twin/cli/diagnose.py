@@ -10,7 +10,7 @@ from twin.cli import options as o
 from twin.cli.output import Output
 from twin.errors import TwinError
 from twin.telemetry.jsonl import read_telemetry
-from tuner.align.diagnose import DEFAULT_CANDIDATES, diagnose
+from tuner.align.diagnose import DEFAULT_CANDIDATES, default_candidates, diagnose
 
 HELP = "rank the likely causes of a lap time the twin does not reproduce (grip, battery, motor, payload)"
 
@@ -24,7 +24,9 @@ def add_parser(sub) -> None:
                    help="the robot's lap time [s] (default: the telemetry's)")
     p.add_argument("--telemetry", metavar="LAP.jsonl", help="a recorded run: ranks the causes by the encoder traces too")
     p.add_argument("--candidate", action="append", metavar="ADDRESS",
-                   help=f"a possible cause, repeatable (default: {', '.join(DEFAULT_CANDIDATES)})")
+                   help="a possible cause, repeatable (default: the physical parameters that move the lap time most, "
+                   "from this twin's learned influences (graph --learn); without them "
+                   f"{', '.join(DEFAULT_CANDIDATES)})")
     o.add_world(p, track_default=None)
     o.add_values(p)
     o.add_seed(p, 0, "the twin's noise seed")
@@ -44,13 +46,15 @@ def run(args: argparse.Namespace) -> int:
     if tel is not None and not args.gains and tel.gains:
         fixed = o.parse_assignments(args.set)
         twin.update({a: v for a, v in tel.gains.items() if a not in fixed})
-    candidates = args.candidate or list(DEFAULT_CANDIDATES)
+    candidates, source = (args.candidate, "given (--candidate)") if args.candidate else default_candidates(twin)
+    out.say(f"candidates: {source}")
     for a in candidates:
         twin.space.parameter(a)  # unknown address: one line before any lap
     report = diagnose(twin, args.measured_lap_time, candidates, tel, seed=args.seed, nthread=args.workers,
                       on_candidate=lambda d: out.say(f"  {d.address}: {d.message}"))
     doc = {"measured_lap_time_s": report.measured_lap_time_s, "nominal_lap_time_s": report.nominal_lap_time_s,
            "candidates": [dataclasses.asdict(d) for d in report.candidates], "skipped": list(report.skipped),
+           "candidates_from": source,
            "joint": None}
     if report.joint is not None:
         doc["joint"] = {"parameters": [p.__dict__ for p in report.joint.parameters],
@@ -58,15 +62,15 @@ def run(args: argparse.Namespace) -> int:
     out.document(doc)
     nominal = f"{report.nominal_lap_time_s:.3f} s" if report.nominal_lap_time_s else "no lap"
     out.say(f"measured {report.measured_lap_time_s:.3f} s; the twin as it is: {nominal}")
-    out.say(f"{'rank':>4}  {'cause':44s} {'value':>10} {'change':>8}  {'plausible range':>20}"
+    out.say(f"{'rank':>4}  {'cause':52s} {'value':>10} {'change':>8}  {'plausible range':>20}"
             + ("  trace rms" if tel is not None else ""))
     for i, d in enumerate(report.candidates, start=1):
         if not d.explained:
-            out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':44s} {'–':>10} {'':>8}  does not explain it")
+            out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':52s} {'–':>10} {'':>8}  does not explain it")
             continue
         rng = f"[{d.plausible_range[0]:.3g}, {d.plausible_range[1]:.3g}]" + ("" if d.plausible else " ✗")
         rms = f"  {d.trace_rms_radps:.2f} rad/s" if d.trace_rms_radps is not None else ""
-        out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':44s} {d.value:>10.4g} {d.change * 100:>+7.1f}%  {rng:>20}{rms}")
+        out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':52s} {d.value:>10.4g} {d.change * 100:>+7.1f}%  {rng:>20}{rms}")
     for s in report.skipped:
         out.say(f"skipped {s}")
     if report.joint is not None:

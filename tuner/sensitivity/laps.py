@@ -1,0 +1,128 @@
+"""The twin as the model of a sensitivity analysis: a sample of parameter values → one lap each, in batches.
+
+Outputs of each lap (:data:`OUTPUTS`):
+
+* ``completed``: 1 for a completed lap, 0 for a failed one: whether the lap completes is its own output;
+* ``lap_time_s``: the lap time;
+* ``energy_j``: the motors' electrical energy drawn in the lap;
+* ``max_cross_track_m``: the largest distance of the centre of rotation from the line.
+
+A failed lap has no lap time, and its energy and cross-track error stop where it failed (a failed calibration turn:
+0 J and 0 m), so each of these three takes, for a failed lap, the median of the completed laps of the same batch
+(:func:`fill_failed`): a failed lap adds no variance, and their indices say what moves the laps that complete, while
+``completed`` says what makes laps fail. (The tuner's penalised cost instead would make one failed lap in ten
+dominate every variance: the indices would repeat the completion's, with intervals as wide as the indices.)
+
+Every lap runs with the same noise seed (common random numbers): the outputs differ by the parameters alone. Laps
+run in batches of at most :data:`CHUNK_LAPS`: each lap with its own motor and friction values holds its own copy of
+the model (~17 MB with the default track's texture), so a batch holds at most :data:`MEMORY_BUDGET` bytes of them
+(fewer laps for a larger texture); each lap is bit-identical to running it alone, so neither the batch size nor the
+thread count changes a result.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+from twin.core.lap import LapResult
+from tuner.sensitivity.analysis import Analysis, analyse
+from tuner.sensitivity.ranges import Factor, default_factors
+
+OUTPUTS = ("lap_time_s", "completed", "energy_j", "max_cross_track_m")
+CHUNK_LAPS = 64
+MEMORY_BUDGET = 1.5e9  # [bytes] of model copies in one batch
+SAMPLES = 256  # Saltelli's N of the default analysis
+TRAJECTORIES = 12  # Morris trajectories of the default analysis
+MAX_SOBOL = 8  # factors that get Sobol' indices at most
+
+
+def lap_outputs(r: LapResult) -> dict[str, float]:
+    """The four outputs of one lap as run: NaN where a failed lap has no value (see :func:`fill_failed`)."""
+    if not r.completed:
+        return {"lap_time_s": math.nan, "completed": 0.0, "energy_j": math.nan, "max_cross_track_m": math.nan}
+    return {"lap_time_s": float(r.lap_time_s), "completed": 1.0, "energy_j": float(r.energy_j),
+            "max_cross_track_m": float(r.max_cross_track_m)}
+
+
+def fill_failed(outputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Each failed lap's lap time, energy and cross-track error := the median over the completed laps (they stay NaN
+    when no lap completed: the analysis then reports that output as without values)."""
+    done = outputs["completed"] > 0
+    out = dict(outputs)
+    for o in ("lap_time_s", "energy_j", "max_cross_track_m"):
+        if done.any():
+            out[o] = np.where(done, outputs[o], np.median(outputs[o][done]))
+    return out
+
+
+class LapModel:
+    """``model(addresses, X)`` → the outputs of one lap per row of X, the rest of the twin as it is.
+
+    Args:
+      twin: the robot on its track; not changed.
+      seed: every lap's noise seed.
+      nthread: threads of each batch (0: all cores); results do not depend on it.
+      on_laps: told how many laps just finished, after each chunk.
+    """
+
+    def __init__(self, twin: DigitalTwin, seed: int = 0, nthread: int = 0,
+                 on_laps: Callable[[int], None] | None = None):
+        self.twin, self.seed, self.nthread, self.on_laps = twin, seed, nthread, on_laps
+        self.laps = 0
+        self.failures: dict[str, int] = {}
+
+    def __call__(self, addresses: Sequence[str], X: np.ndarray) -> dict[str, np.ndarray]:
+        rows: list[dict[str, float]] = []
+        chunk = min(CHUNK_LAPS, max(8, int(MEMORY_BUDGET // max(self.twin.model().nbuffer, 1))))
+        for start in range(0, len(X), chunk):
+            variants = [{a: float(v) for a, v in zip(addresses, x)} for x in X[start:start + chunk]]
+            for r in run_laps(self.twin, variants, seed=self.seed, nthread=self.nthread, keep_traces=False):
+                rows.append(lap_outputs(r))
+                if not r.completed:
+                    self.failures[r.failure] = self.failures.get(r.failure, 0) + 1
+            self.laps += len(variants)
+            if self.on_laps:
+                self.on_laps(len(variants))
+        return fill_failed({o: np.array([row[o] for row in rows]) for o in OUTPUTS})
+
+
+def learn(twin: DigitalTwin, factors: Sequence[Factor] | None = None, samples: int = SAMPLES,
+          trajectories: int = TRAJECTORIES, seed: int = 0, nthread: int = 0, max_sobol: int = MAX_SOBOL,
+          on_stage: Callable[[str, int], None] | None = None, on_laps: Callable[[int], None] | None = None) -> Analysis:
+    """Measure what governs the lap: :func:`tuner.sensitivity.analysis.analyse` over the twin's laps.
+
+    Args:
+      factors: what to vary (default: :func:`tuner.sensitivity.ranges.default_factors`).
+      samples, trajectories, max_sobol: the analysis' sizes (see :func:`analyse`).
+      seed: the laps' noise seed and the analysis' sampling seed.
+      nthread: threads of each batch; results do not depend on it.
+
+    ``extra`` of the result: laps, wall and CPU time, the completion rate, failures by kind, the parameters left
+    out (default factors only) and the twin's values of the varied parameters.
+    """
+    left_out: Mapping[str, str] = {}
+    if factors is None:
+        factors, left_out = default_factors(twin.space)
+    twin.model()  # built before the clock starts: the build is not the analysis
+    model = LapModel(twin, seed, nthread, on_laps)
+    wall, cpu = time.perf_counter(), time.process_time()
+    result = analyse(factors, model, OUTPUTS, samples, trajectories, seed, max_sobol, on_stage)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    failed = sum(model.failures.values())
+    extra = {"laps": model.laps, "wall_s": wall, "cpu_s": cpu, "completion_rate": 1 - failed / model.laps,
+             "failures": dict(sorted(model.failures.items())), "left_out": dict(left_out),
+             "nominal": {f.address: twin.space.get(f.address) for f in factors}, "track": twin.track.name,
+             "laps_per_s": model.laps / wall if wall > 0 else math.inf}
+    notes = result.notes
+    if failed:
+        kinds = ", ".join(f"{n} {k}" for k, n in extra["failures"].items())
+        notes += (f"{failed} of {model.laps} laps failed ({kinds}): completed says what makes them fail; their lap time, "
+                  "energy and cross-track error are the completed laps' median",)
+    return dataclasses.replace(result, extra=extra, notes=notes)
