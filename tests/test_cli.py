@@ -30,6 +30,7 @@ def parsers() -> dict[str, argparse.ArgumentParser]:
     return {name: p for a in top._actions if isinstance(a, argparse._SubParsersAction) for name, p in a.choices.items()}
 
 
+@pytest.mark.quick
 def test_the_other_entry_points_have_the_same_options():
     assert visible_flags(tune.parser()) == visible_flags(parsers()["tune"])
 
@@ -55,6 +56,7 @@ def readme_table() -> dict[str, set[str]]:
     return table
 
 
+@pytest.mark.quick
 def test_the_readme_flag_table_matches_help():
     table = readme_table()
     found: dict[str, set[str]] = {}
@@ -68,6 +70,7 @@ def test_the_readme_flag_table_matches_help():
         assert listed == commands, f"{flag}: README lists {sorted(listed)}, --help has it in {sorted(commands)}"
 
 
+@pytest.mark.quick
 def test_help_shows_defaults_and_every_command_is_listed_and_described():
     top = front_door.parser()
     text = top.format_help()
@@ -179,6 +182,7 @@ def _imports(path: str, module: str) -> list[tuple[str, str | None]]:
     return out
 
 
+@pytest.mark.quick
 def test_layers_no_cycles_no_string_or_private_imports_across_packages():
     modules = {}
     for pkg in PACKAGES:
