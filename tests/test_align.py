@@ -21,6 +21,7 @@ def fast_twin():
     return t
 
 
+@pytest.mark.quick
 def test_hidden_mu_is_recovered_from_the_lap_time(fast_twin):
     measured = run_laps(fast_twin, [{"motion.mu": 0.9}], seed=0)[0].lap_time_s
     r = align_lap_time(fast_twin, measured)
@@ -31,6 +32,7 @@ def test_hidden_mu_is_recovered_from_the_lap_time(fast_twin):
     assert fast_twin.space.get("motion.mu") == 0.9  # the twin's own value is untouched by the search
 
 
+@pytest.mark.quick
 def test_unexplained_lap_time_is_reported_with_the_reachable_range():
     t = DigitalTwin()  # default gains: the tyres never slip above μ ≈ 0.3, so μ cannot make the lap 15.7 s
     r = align_lap_time(t, 15.7)

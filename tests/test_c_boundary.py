@@ -45,6 +45,7 @@ def twin():
 
 
 # --- layout: every mirrored field, checked when twin.core.native loads
+@pytest.mark.quick
 def test_the_library_layout_is_the_mirror():
     c = core.library_layout(core.lib)
     ours = core.mirrors()
@@ -54,6 +55,7 @@ def test_the_library_layout_is_the_mirror():
     assert c["lf_record.raw_us"] == (8 * 20, 8 * MAX_SENSORS)
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("struct, cls", [("lf_sim", core.Sim), ("lf_params", core.Params), ("lf_state", core.FwState),
                                          ("lf_sensor_model", core.SensorModelC), ("lf_texture", core.Texture)])
 def test_the_c_table_leaves_no_field_out(struct, cls):
@@ -70,6 +72,7 @@ def test_the_c_table_leaves_no_field_out(struct, cls):
     assert ctypes.sizeof(cls) == -(-end // ctypes.alignment(cls)) * ctypes.alignment(cls)
 
 
+@pytest.mark.quick
 def test_a_mirror_that_drifted_fails_the_import_check():
     c = core.library_layout(core.lib)
     ours = core.mirrors()
@@ -85,6 +88,7 @@ def test_a_mirror_that_drifted_fails_the_import_check():
         core.check_layout({**c, "lf_params.extra": (200, 8)}, ours)
 
 
+@pytest.mark.quick
 def test_python_and_c_agree_on_the_limits():
     fw = header_constants("firmware/line_follower.h")
     assert MAX_SENSORS == fw["LF_MAX_SENSORS"]
@@ -214,6 +218,7 @@ def params(**kw) -> ref.ControlParams:
     return ref.ControlParams(**{**base, **kw})
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("kw, needle", [
     ({"count": 1000}, "control.count"), ({"count": MAX_SENSORS + 1}, "control.count"), ({"count": 0}, "control.count"),
     ({"count": 8.0}, "control.count"), ({"cal_sweeps": 2**31}, "control.cal_sweeps"),
@@ -224,6 +229,7 @@ def test_counts_beyond_the_c_limits_are_refused(kw, needle):
     assert "\n" not in str(e.value)
 
 
+@pytest.mark.quick
 def test_the_largest_sensor_count_is_accepted():
     assert params(count=MAX_SENSORS).count == 16
 
@@ -233,12 +239,14 @@ def c_ticks(p) -> int:
     return core.lib.lf_calibration_ticks(ctypes.byref(core.params_to_c(p)))
 
 
+@pytest.mark.quick
 def test_calibration_ticks_by_hand():
     # ω = 0.01 · 1 rad/s · 16 mm / 42.5 mm; a quarter sweep of 3 rad takes 3 / (ω · 5 ms) = 159375 ticks
     slow = params(cal_duty=0.01, wheel_speed_max=1.0, cal_sweep_rad=3.0, cal_sweeps=10)
     assert ref.calibration_ticks(slow) == c_ticks(slow) == 4 * 159375 * 10
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("kw, expected", [
     # a quarter beyond 2**29 ticks saturates there: one sweep is then 2**31 ticks
     ({"wheel_radius_m": 1e-9, "cal_duty": 0.01, "wheel_speed_max": 1.0, "cal_sweeps": 1}, 2**31),
@@ -251,6 +259,7 @@ def test_calibration_ticks_saturate_alike(kw, expected):
     assert ref.calibration_ticks(p) == c_ticks(p) == expected
 
 
+@pytest.mark.quick
 def test_c_saturates_where_python_cannot_go():
     """Values ControlParams refuses still give C a defined answer (no division by zero, no wrap)."""
     p = core.params_to_c(params())
@@ -262,6 +271,7 @@ def test_c_saturates_where_python_cannot_go():
     assert core.lib.lf_calibration_ticks(ctypes.byref(p)) == 0
 
 
+@pytest.mark.quick
 def test_the_tick_counter_saturates_in_c_and_python():
     p = params(count=4)
     c = core.FwState()
@@ -274,6 +284,7 @@ def test_the_tick_counter_saturates_in_c_and_python():
     assert c.tick == py.tick == 2**32 - 1
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("remaining, per_tick, expected", [
     (7.18, 0.0, CHUNK_TICKS), (7.18, 1e-320, CHUNK_TICKS), (math.nan, 0.01, CHUNK_TICKS), (math.inf, 0.01, CHUNK_TICKS),
     (0.0, 0.01, MIN_CHUNK_TICKS),  # at most 1 tick could finish it: the shortest chunk
@@ -285,12 +296,14 @@ def test_chunk_scheduler_never_overflows(remaining, per_tick, expected):
 
 
 # --- seeds
+@pytest.mark.quick
 @pytest.mark.parametrize("seed", [2**64, -1, 1.5, "7"])
 def test_seeds_outside_the_generator_are_refused(twin, seed):
     with pytest.raises(TwinError, match=re.escape(f"seed: must be a whole number in [0, 2**64 - 1], got {seed!r}")):
         run_laps(twin, [{}], seed=seed)
 
 
+@pytest.mark.quick
 def test_the_largest_seed_is_its_own(twin):
     top = run_laps(twin, [{}], seed=2**64 - 1)[0]
     zero = run_laps(twin, [{}], seed=0)[0]
@@ -298,6 +311,7 @@ def test_the_largest_seed_is_its_own(twin):
 
 
 # --- the calibration turn has a limit in simulated time, checked before simulating
+@pytest.mark.quick
 def test_a_turn_too_slow_fails_at_once(twin):
     slow = {"control.full_speed": 1.0, "control.cal_duty": 0.01, "control.cal_sweeps": 10, "control.cal_sweep": 3.0}
     t0 = time.perf_counter()
@@ -310,6 +324,7 @@ def test_a_turn_too_slow_fails_at_once(twin):
     assert default.summary() == run_laps(twin, [{}], keep_traces=False)[0].summary()  # batch = alone
 
 
+@pytest.mark.quick
 def test_the_turn_limit_is_simulated_time(twin):
     p = twin.control_params()
     omega = p.cal_duty * twin.space.get("control.full_speed") * 0.016 / 0.0425  # Eq. 2: ω = R (ω_r − ω_l) / 2L

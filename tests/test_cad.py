@@ -12,6 +12,8 @@ from lf_common.files import output_dir
 from mjcf import MjcfError, RobotDesign
 from mjcf.cad import mesh_inertial, write_robot
 
+pytestmark = pytest.mark.quick  # the whole module is in the quick tier (tests/test_tiers.py)
+
 
 def test_urdf_has_stated_masses_and_geometric_inertias(tmp_path):
     design = RobotDesign()

@@ -28,6 +28,7 @@ def parsers() -> dict[str, argparse.ArgumentParser]:
     return {name: p for a in top._actions if isinstance(a, argparse._SubParsersAction) for name, p in a.choices.items()}
 
 
+@pytest.mark.quick
 def test_the_other_entry_points_have_the_same_options():
     assert visible_flags(tune.parser()) == visible_flags(parsers()["tune"])
 
@@ -53,6 +54,7 @@ def readme_table() -> dict[str, set[str]]:
     return table
 
 
+@pytest.mark.quick
 def test_the_readme_flag_table_matches_help():
     table = readme_table()
     found: dict[str, set[str]] = {}
@@ -66,6 +68,7 @@ def test_the_readme_flag_table_matches_help():
         assert listed == commands, f"{flag}: docs/cli.md lists {sorted(listed)}, --help has it in {sorted(commands)}"
 
 
+@pytest.mark.quick
 def test_help_shows_defaults_and_every_command_is_listed_and_described():
     top = front_door.parser()
     text = top.format_help()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 import types
@@ -11,12 +12,14 @@ import numpy as np
 import pytest
 
 from mjcf.track import builtin
+from mjcf.world import MOTORS
 from twin.core import native as core
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.core.lap import COL, LapJudge, LapLimits
 from twin.run import main
+from twin.viz.viewer import check_recording
 
 
 @pytest.fixture(scope="module")
@@ -29,6 +32,7 @@ def default_lap(twin):
     return run_laps(twin, [{}], seed=0)[0]
 
 
+@pytest.mark.quick
 def test_default_gains_complete_the_default_lap(default_lap, twin):
     r = default_lap
     assert r.completed and r.failure is None
@@ -57,6 +61,7 @@ def energy_lower_bound_j(distance_m: float, lap_time_s: float) -> float:
     return 2 * (R * b * b / K / K + b) * w_mean**2 * lap_time_s
 
 
+@pytest.mark.quick
 def test_trace_is_consistent_with_eqs_10_and_11(default_lap, twin):
     tr = default_lap.trace
     p = twin.control_params()
@@ -73,6 +78,7 @@ def test_trace_is_consistent_with_eqs_10_and_11(default_lap, twin):
     assert np.allclose(np.diff(tr.time_s), p.dt_s)  # one record per control tick
 
 
+@pytest.mark.quick
 def test_calibration_comes_from_the_in_place_turn(twin, default_lap):
     r = default_lap
     # every sensor crossed the line and the ground: min ≈ white board (≈ 200 µs), max ≈ tape (≈ 2400 µs)
@@ -84,6 +90,7 @@ def test_calibration_comes_from_the_in_place_turn(twin, default_lap):
     assert small.calibration_max_us[0] - small.calibration_min_us[0] < 300
 
 
+@pytest.mark.quick
 def test_leaving_the_track_is_a_result(twin):
     blind, lost = run_laps(twin, [{"control.kp": 0.0, "control.kd": 0.0}, {"control.kp": 0.0, "control.kd": 0.0}],
                            keep_traces=False, limits=LapLimits(max_line_lost_s=1000.0))[0], None
@@ -94,6 +101,7 @@ def test_leaving_the_track_is_a_result(twin):
     assert lost.failure == "line_lost" and lost.simulated_s < blind.simulated_s
 
 
+@pytest.mark.quick
 def test_same_seed_is_bit_identical_and_seed_matters(twin, default_lap):
     again = run_laps(twin, [{}], seed=0, nthread=1)[0]
     assert np.array_equal(again.trace.records, default_lap.trace.records)
@@ -102,6 +110,7 @@ def test_same_seed_is_bit_identical_and_seed_matters(twin, default_lap):
     assert not np.array_equal(other.trace.raw_us[:100], default_lap.trace.raw_us[:100])
 
 
+@pytest.mark.quick
 def test_batched_laps_equal_laps_run_one_by_one(twin):
     variants = [{"control.v_max": 0.8, "control.kp": 25.0}, {"motion.mu": 0.4}, {"control.kd": 0.5, "sensor.noise": 0.05}]
     together = run_laps(twin, variants, seed=3, nthread=2)
@@ -112,6 +121,7 @@ def test_batched_laps_equal_laps_run_one_by_one(twin):
     assert twin.space.get("motion.mu") == 0.9  # variants do not leak into the twin
 
 
+@pytest.mark.quick
 def test_variants_never_write_to_the_twin():
     """A variant is derived from a mapping of values: the twin's values and model fields are never touched,
     not even for the duration of the batch (another thread may read them)."""
@@ -129,6 +139,7 @@ def test_variants_never_write_to_the_twin():
     assert t.rebuilds == 1
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("change, needle", [
     ({"cad.L": 0.05}, "cad.L: rebuilds the robot or track"),
     ({"motor.L_M": 0.0}, "motor.L_M: switching between zero and non-zero"),
@@ -140,6 +151,7 @@ def test_a_variant_that_cannot_share_the_batch_is_one_line(twin, change, needle)
     assert needle in str(e.value) and "\n" not in str(e.value)
 
 
+@pytest.mark.quick
 def test_sensor_count_is_a_model_parameter():
     t = DigitalTwin()
     t.update({"sensor.count": 6, "sensor.pitch": 0.012})
@@ -160,6 +172,7 @@ def synthetic(track, speed, t):
     return rec
 
 
+@pytest.mark.quick
 def test_judge_interpolates_the_crossing():
     track = builtin("circle")
     t = np.arange(0, 4.0, 0.005)
@@ -174,6 +187,7 @@ def test_judge_interpolates_the_crossing():
     assert r.max_cross_track_m < 1e-6
 
 
+@pytest.mark.quick
 def test_judge_times_a_lost_line():
     track = builtin("oval")
     t = np.arange(0, 3.0, 0.005)
@@ -187,21 +201,63 @@ def test_judge_times_a_lost_line():
 
 
 # --- command line
+DEFAULT_TRACK_LENGTH_M = 2.7 + math.pi * (0.5 + 0.25 + 0.15 + 0.15 + 0.3 + 0.4) / 2 + math.pi * (0.2 + 0.35)
+"""By hand from mjcf.track's segments of the default track: 2.7 m of straights, six quarter arcs and two half arcs."""
+
+
+def electrical_energy_j(twin: DigitalTwin, trace, t_end: float) -> float:
+    """∫ U·I dt over [0, t_end] for both motors, from a lap's trace and Eq. 6 alone (not the C loop's integral).
+    The firmware writes each voltage U once per control tick and it holds until the next; the current settles
+    within L/R = 0.5 mH / 8.96 Ω = 56 µs ≪ Δt = 5 ms, so I = (U − K·ω_m)/R, with ω_m the motor speed (the
+    wheel's times the actuator's signed gear), averaged over the tick. A motor feeding power back (U·I < 0)
+    draws none from the battery."""
+    model, t = twin.model(), trace.time_s
+    R, K = twin.space.get("motor.R_M"), twin.space.get("motor.K")
+    dt = np.clip(t_end - t[:-1], 0.0, np.diff(t))  # whole ticks, and the part of the last one before t_end
+    total = 0.0
+    for motor, u, w in zip(MOTORS, ("u_left_v", "u_right_v"), ("wheel_left_radps", "wheel_right_radps")):
+        U, w_m = trace.column(u)[:-1], model.actuator(motor).gear[0] * trace.column(w)
+        current = (U - K * (w_m[:-1] + w_m[1:]) / 2) / R
+        total += float(np.sum(np.maximum(U * current, 0.0) * dt))
+    return total
+
+
+@pytest.mark.quick
 def test_cli_lap_json_gains_and_recording(tmp_path, capsys):
     gains = tmp_path / "gains.json"
     gains.write_text(json.dumps({"gains": {"control.v_max": 0.7, "kp": 18}}))
     rrd = tmp_path / "run.rrd"
     assert main(["lap", "--gains", str(gains), "--set", "control.kd=0.35", "--json", "--save", str(rrd)]) == 0
     out = json.loads(capsys.readouterr().out)
-    for key in ("lap_time_s", "completed", "failure", "max_cross_track_m", "mean_cross_track_m", "energy_j", "parameters"):
-        assert key in out
-    assert out["completed"] and out["parameters"]["control.v_max"] == 0.7 and out["parameters"]["control.kp"] == 18
+    assert out["completed"] and out["failure"] is None and out["seed"] == 0
+    assert out["parameters"]["control.v_max"] == 0.7 and out["parameters"]["control.kp"] == 18
     assert out["parameters"]["control.kd"] == 0.35
-    data = rrd.read_bytes()
-    assert len(data) > 10_000 and b"sensors/calibrated/7" in data and b"track/robot/path" in data
+    # the same lap through the library: the command adds nothing and loses nothing
+    twin = DigitalTwin()
+    twin.update({"control.v_max": 0.7, "control.kp": 18.0, "control.kd": 0.35})
+    lap = run_laps(twin, [{}], seed=0)[0]
+    assert (out["lap_time_s"], out["energy_j"]) == (lap.lap_time_s, lap.energy_j)
+    assert (out["max_cross_track_m"], out["mean_cross_track_m"]) == (lap.max_cross_track_m, lap.mean_cross_track_m)
+    # a completed lap covers the track: its length by hand from the segments
+    assert out["distance_m"] == pytest.approx(DEFAULT_TRACK_LENGTH_M, abs=1e-6)
+    assert out["track_length_m"] == pytest.approx(DEFAULT_TRACK_LENGTH_M, abs=1e-6)
+    # the energy is the electrical energy the motors drew, recomputed from the trace by Eq. 6
+    assert out["energy_j"] == pytest.approx(electrical_energy_j(twin, lap.trace, lap.lap_time_s), rel=2e-3)
+    # the recording holds that lap: rerun's own reader finds the energy series tick by tick
+    check_recording(str(rrd))
     assert not list(tmp_path.glob("*.tmp"))
+    data = rrd.read_bytes()
+    assert b"sensors/calibrated/7" in data and b"track/robot/path" in data
+    try:
+        from rerun.chunk import RrdReader  # rerun-sdk ≥ 0.41
+    except ImportError:
+        pytest.skip("reading a recording back needs rerun-sdk ≥ 0.41")
+    chunks = [c.to_record_batch() for c in RrdReader(str(rrd)).stream().to_chunks() if c.entity_path == "/energy/motors"]
+    recorded = np.concatenate([np.concatenate(b.column("Scalars:scalars").to_pylist()) for b in chunks])
+    assert np.array_equal(recorded, lap.trace.column("energy_j"))
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("args, needle", [
     (["--track", "nowhere"], "unknown track"),
     (["--set", "control.kp=nan"], "control.kp: must be finite"),
@@ -222,6 +278,7 @@ def test_cli_unreadable_track_image_in_a_fresh_process(tmp_path):
     assert p.stderr.strip().startswith(f"error: {bad}")
 
 
+@pytest.mark.quick
 def test_c_lap_progress_equals_track_locate():
     """lf_locate (the C loop's incremental search) against Track.locate (k-d tree) along a wandering path."""
     import ctypes
@@ -247,6 +304,7 @@ def test_c_lap_progress_equals_track_locate():
         assert abs(ds) < 1e-9 and abs(off_c.value - ref_off[k]) < 1e-12, k
 
 
+@pytest.mark.quick
 def test_a_field_changed_on_the_twin_is_simulated_by_the_next_laps():
     """The batch of a twin is reused between calls; a model-field change in between must reach it."""
     t = DigitalTwin()
@@ -257,6 +315,7 @@ def test_a_field_changed_on_the_twin_is_simulated_by_the_next_laps():
     assert slow.lap_time_s == run_laps(DigitalTwin(), [{"motion.mu": 0.22}], keep_traces=False)[0].lap_time_s
 
 
+@pytest.mark.quick
 def test_kept_calibration_is_bit_identical_to_a_fresh_one(twin):
     """Laps that differ only in gains reuse one calibration turn; the laps equal those of a fresh twin."""
     variants = [{"control.kp": 18.0}, {"control.kp": 22.0, "control.v_max": 0.7}]
@@ -268,6 +327,7 @@ def test_kept_calibration_is_bit_identical_to_a_fresh_one(twin):
         assert a.calibration_max_us == b.calibration_max_us
 
 
+@pytest.mark.quick
 def test_per_lap_seeds_equal_laps_run_with_one_seed_each(twin):
     together = run_laps(twin, [{}, {"control.kp": 18.0}, {}], seed=[3, 0, 5], keep_traces=False)
     alone = [run_laps(twin, [v], seed=s, keep_traces=False)[0] for v, s in (({}, 3), ({"control.kp": 18.0}, 0), ({}, 5))]
@@ -275,6 +335,7 @@ def test_per_lap_seeds_equal_laps_run_with_one_seed_each(twin):
     assert together[0].lap_time_s != together[2].lap_time_s  # the seeds did differ
 
 
+@pytest.mark.quick
 def test_a_supply_voltage_varied_in_a_batch_is_the_one_simulated():
     """The PWM duty drives the lap's own battery voltage: a 4.8 V variant in a batch equals a twin set to 4.8 V."""
     base = DigitalTwin(track="oval")

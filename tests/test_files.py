@@ -95,6 +95,7 @@ def test_design_checks_its_folder_before_any_work(tmp_path):
     assert snapshot(d) == {"thesis.tex": b"x"}
 
 
+@pytest.mark.quick
 def test_a_failing_writer_leaves_neither_a_temporary_nor_a_changed_target(tmp_path):
     target = tmp_path / "out.json"
     write_json(str(target), {"a": 1})
@@ -111,6 +112,7 @@ def test_a_failing_writer_leaves_neither_a_temporary_nor_a_changed_target(tmp_pa
     assert os.listdir(tmp_path) == ["out.json"]
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("make,needle", [
     (lambda p: None, "does not exist"),  # missing parent folder
     (lambda p: os.makedirs(p), "is a folder"),
@@ -123,6 +125,7 @@ def test_bad_output_file_paths_are_one_line_errors(tmp_path, make, needle):
         write_json(target, {})
 
 
+@pytest.mark.quick
 def test_read_only_folders_are_refused(tmp_path):
     # /proc refuses new files even to root; a chmod-ed folder does not stop root, so it is tried only as a user
     with pytest.raises(OutputError, match="cannot write|not writable"):
@@ -139,6 +142,7 @@ def test_read_only_folders_are_refused(tmp_path):
             os.chmod(tmp_path, 0o700)
 
 
+@pytest.mark.quick
 def test_json_inputs_are_bounded_and_errors_are_one_line(tmp_path):
     deep = tmp_path / "deep.json"
     deep.write_text("[" * 100000 + "]" * 100000)
@@ -167,6 +171,7 @@ def test_parallel_builds_of_one_new_robot_all_succeed_with_one_entry(tmp_path):
     assert len(entries) == 1 and not entries[0].startswith(".")
 
 
+@pytest.mark.quick
 def test_a_damaged_cache_entry_is_rebuilt_with_a_warning(tmp_path, caplog):
     calls = []
 
@@ -188,6 +193,7 @@ def test_a_damaged_cache_entry_is_rebuilt_with_a_warning(tmp_path, caplog):
     assert len(calls) == 3 and open(os.path.join(entry, "a.bin"), "rb").read() == b"good"
 
 
+@pytest.mark.quick
 def test_a_swapped_cached_mesh_or_texture_does_not_change_the_lap(tmp_path, monkeypatch):
     monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))
     from PIL import Image
@@ -211,6 +217,7 @@ def test_a_swapped_cached_mesh_or_texture_does_not_change_the_lap(tmp_path, monk
     assert again.completed and again.lap_time_s == reference.lap_time_s
 
 
+@pytest.mark.quick
 def test_json_written_by_us_carries_the_generator(tmp_path):
     path = write_json(str(tmp_path / "x.json"), {"k": 1})
     assert json.load(open(path))["generator"] == GENERATOR

@@ -15,6 +15,8 @@ from line_sensor.processing import read_calibrated, read_line, line_angle
 from twin.model import control as ref
 from twin.core.native import FwState, lib, params_to_c
 
+pytestmark = pytest.mark.quick  # the whole module is in the quick tier (tests/test_tiers.py)
+
 FIRMWARE = os.path.join(os.path.dirname(__file__), "..", "twin", "csrc", "firmware")
 PITCH, S = 0.009525, 0.040
 

@@ -13,6 +13,8 @@ from line_sensor.reflectance import NoiseSource, SensorModel, footprint_reflecta
 from mjcf.track import GROUND_GREY, LINE_GREY, Track, builtin
 from twin.core.native import Texture, lib, sensor_to_c
 
+pytestmark = pytest.mark.quick  # the whole module is in the quick tier (tests/test_tiers.py)
+
 
 @pytest.fixture(scope="module")
 def floor():

@@ -20,7 +20,7 @@ import pytest
 from twin.model import control as ref
 from twin.core.native import FwState, lib, params_to_c
 
-pytestmark = pytest.mark.usefixtures("mcu_selftest")
+pytestmark = [pytest.mark.usefixtures("mcu_selftest"), pytest.mark.quick]
 EPS32 = 2.0**-24
 N = 2000
 

@@ -13,6 +13,7 @@ from twin.model import ChangeCost
 from twin.model.partial_models import default_space
 
 
+@pytest.mark.quick
 def test_every_parameter_has_one_address_and_a_unit():
     space = default_space()
     assert len(space.addresses) == len(set(space.addresses))
@@ -20,6 +21,7 @@ def test_every_parameter_has_one_address_and_a_unit():
         assert a in space.addresses and space.parameter(a).unit
 
 
+@pytest.mark.quick
 def test_io_relations_are_derived_from_matching_ports():
     rel = {(r.source, r.port, r.target) for r in default_space().io_relations()}
     assert rel == {
@@ -36,6 +38,7 @@ def test_io_relations_are_derived_from_matching_ports():
     assert default_space().unconnected_inputs() == [("environment", "track_definition")]
 
 
+@pytest.mark.quick
 def test_change_costs_follow_the_influences_relation():
     space = default_space()
     assert space.set("cad.L", 0.05) is ChangeCost.REBUILD
@@ -46,11 +49,13 @@ def test_change_costs_follow_the_influences_relation():
     assert space.set("sensor.count", 6) is ChangeCost.REBUILD
 
 
+@pytest.mark.quick
 def test_integer_parameters_refuse_fractions():
     with pytest.raises(TwinError, match="sensor.count: must be a whole number"):
         default_space().set("sensor.count", 6.5)
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("address,value,match", [
     ("motion.muu", 0.5, "unknown parameter address; did you mean motion.mu"),
     ("motion.mu", float("nan"), "must be finite"),
@@ -63,6 +68,7 @@ def test_bad_values_name_the_address(address, value, match):
         default_space().set(address, value)
 
 
+@pytest.mark.quick
 def test_update_is_all_or_nothing():
     space = default_space()
     with pytest.raises(TwinError):
@@ -70,6 +76,7 @@ def test_update_is_all_or_nothing():
     assert space.get("motion.mu") == 0.9
 
 
+@pytest.mark.quick
 def test_field_change_edits_the_model_and_cad_change_rebuilds_it():
     twin = DigitalTwin(track="oval")
     model = twin.model()
@@ -85,12 +92,14 @@ def test_field_change_edits_the_model_and_cad_change_rebuilds_it():
     assert rebuilt.geom(twin.info.tyre_geoms[0]).friction[0] == 0.55  # field values survive a rebuild
 
 
+@pytest.mark.quick
 def test_cad_parameters_do_not_apply_to_a_given_urdf(third_party_urdf):
     twin = DigitalTwin(robot_urdf=third_party_urdf)
     with pytest.raises(TwinError, match="of the CAD parameters only cad.S"):
         twin.set("cad.L", 0.05)
 
 
+@pytest.mark.quick
 def test_sensor_array_geometry_is_centred():
     offsets = SensorArray().lateral_offsets()
     assert offsets.sum() == pytest.approx(0.0, abs=1e-15)

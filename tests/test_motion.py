@@ -7,6 +7,8 @@ import pytest
 from mjcf.world import AXLE_SITE, MOTORS
 from twin.core.digital_twin import DigitalTwin
 
+pytestmark = pytest.mark.quick  # the whole module is in the quick tier (tests/test_tiers.py)
+
 
 @pytest.fixture
 def twin():

@@ -11,6 +11,8 @@ from motors.actuator import add_dcmotor, read_fields, write_fields
 from motors.analytic import free_air_step
 from motors.datasheet import RPM
 
+pytestmark = pytest.mark.quick  # the whole module is in the quick tier (tests/test_tiers.py)
+
 
 def wheel_in_free_air(motor: MotorConstants, timestep: float) -> mujoco.MjModel:
     spec = mujoco.MjSpec()

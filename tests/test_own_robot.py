@@ -47,6 +47,7 @@ def one_line_exit_2(r) -> str:
 
 # --- descriptions as published ----------------------------------------------------------------------------
 
+@pytest.mark.quick
 def test_xacro_expands_with_find_and_arguments(xacro_path):
     d = read_description(xacro_path, (("prefix", "lf_"),))
     assert b"lf_wheel_left_joint" in d.xml and b"${" not in d.xml and b"$(" not in d.xml
@@ -55,6 +56,7 @@ def test_xacro_expands_with_find_and_arguments(xacro_path):
     assert info.wheel_joints == ("lf_wheel_left_joint", "lf_wheel_right_joint")
 
 
+@pytest.mark.quick
 def test_packages_are_found_above_the_description_or_named(tmp_path, xacro_path):
     pkg = os.path.dirname(os.path.dirname(xacro_path))
     assert find_package(rs.PACKAGE, os.path.dirname(xacro_path)) == pkg
@@ -72,6 +74,7 @@ def test_packages_are_found_above_the_description_or_named(tmp_path, xacro_path)
     assert info.wheel_radius == pytest.approx(rs.WHEEL_RADIUS)
 
 
+@pytest.mark.quick
 def test_fixed_hubs_named_by_the_plugin_become_wheels(xacro_path):
     spec, info = convert(xacro_path)
     model = spec.compile()
@@ -85,6 +88,7 @@ def test_fixed_hubs_named_by_the_plugin_become_wheels(xacro_path):
     assert any("caster" in g for g in info.caster_geoms)
 
 
+@pytest.mark.quick
 def test_masses_and_inertias_are_the_urdfs_or_its_geometrys(xacro_path):
     spec, info = convert(xacro_path)
     model = spec.compile()
@@ -109,6 +113,7 @@ def test_masses_and_inertias_are_the_urdfs_or_its_geometrys(xacro_path):
     assert twin.model().body("wheel_left_link").mass[0] == pytest.approx(m, rel=1e-6)
 
 
+@pytest.mark.quick
 def test_unexpanded_xacro_named_urdf_is_refused_with_the_fix(tmp_path):
     path = tmp_path / "robot.urdf"
     path.write_text('<robot name="r"><link name="${prefix}base"/></robot>')
@@ -116,6 +121,7 @@ def test_unexpanded_xacro_named_urdf_is_refused_with_the_fix(tmp_path):
         read_description(str(path))
 
 
+@pytest.mark.quick
 def test_named_fixed_hubs_without_a_plugin(tmp_path, xacro_path):
     xml = read_description(xacro_path).xml.decode()
     start, end = xml.index("<gazebo"), xml.index("</gazebo>") + len("</gazebo>")
@@ -128,6 +134,7 @@ def test_named_fixed_hubs_without_a_plugin(tmp_path, xacro_path):
     assert info.wheel_joints == ("wheel_left_joint", "wheel_right_joint")
 
 
+@pytest.mark.quick
 def test_a_caster_below_the_wheels_is_reported(tmp_path, xacro_path):
     text = open(xacro_path).read().replace('<origin xyz="{0} 0 -0.004"/>'.format(rs.CASTER_X),
                                            '<origin xyz="{0} 0 -0.024"/>'.format(rs.CASTER_X))
@@ -141,6 +148,7 @@ def test_a_caster_below_the_wheels_is_reported(tmp_path, xacro_path):
 
 # --- the sensor mount --------------------------------------------------------------------------------------
 
+@pytest.mark.quick
 def test_sensor_mount_places_the_array_and_cad_s_moves_it(xacro_path):
     twin = DigitalTwin(track="oval", robot_urdf=xacro_path, robot_config=RobotConfig(sensor_mount=MOUNT))
     twin.model()
@@ -156,6 +164,7 @@ def test_sensor_mount_places_the_array_and_cad_s_moves_it(xacro_path):
         twin.set("cad.L", 0.05)
 
 
+@pytest.mark.quick
 def test_a_sensor_too_high_or_missing_names_the_fix(xacro_path):
     high = DigitalTwin(track="oval", robot_urdf=xacro_path, robot_config=RobotConfig(sensor_mount=("base_link", (0.075, 0, 0.13))))
     with pytest.raises(TwinError, match=r"150\.0 mm above the floor.*--sensor-mount LINK:X,Y,Z"):
@@ -173,11 +182,19 @@ def test_your_robot_in_five_minutes(tmp_path, xacro_path):
     r = run("convert", xacro_path, "-o", tmp_path / "lfbot.xml", *mount, "--json")
     assert r.returncode == 0, r.stderr
     assert mujoco.MjModel.from_xml_path(json.loads(r.stdout)["xml"]).nu == 2
-    r = run("tune", "--robot", xacro_path, *mount, "-q", "--held-out", "0", "-o", tmp_path / "g.json")
+    r = run("tune", "--robot", xacro_path, *mount, "-q", "--held-out", "0", "-o", tmp_path / "g.json", "--json")
     assert r.returncode == 0, r.stderr
+    tuned = json.loads(r.stdout)
     r = run("lap", "--robot", xacro_path, *mount, "--gains", tmp_path / "g.json", "--json")
     lap = json.loads(r.stdout)
     assert r.returncode == 0 and lap["completed"], r.stderr
+    # tuning improved the lap: the start is the default gains' lap, the tuned gains' lap is faster, and the
+    # written gains, raced again by lap, give the lap time tuning reported
+    r = run("lap", "--robot", xacro_path, *mount, "--json")
+    start = json.loads(r.stdout)
+    assert r.returncode == 0 and start["completed"], r.stderr
+    assert tuned["initial_lap_time_s"] == start["lap_time_s"]
+    assert lap["lap_time_s"] == tuned["final_lap_time_s"] < tuned["initial_lap_time_s"]
 
 
 @pytest.mark.parametrize("args,fix", [
@@ -200,6 +217,7 @@ def test_robot_options_without_a_robot_are_refused():
 
 # --- motors and gains for the robot -------------------------------------------------------------------------
 
+@pytest.mark.quick
 def test_motor_choice_by_hand():
     """The default motor fits the default robot (hand: 2·½·0.0324 N·m / 16 mm = 2.02 N against 0.21 kg·g = 2.06 N,
     0.98 g); a 10 kg robot on 33 mm wheels gets a sized motor with τ_stall = m·g·R = 3.236 N·m and 1 m/s."""
@@ -231,6 +249,7 @@ def test_a_heavy_robot_gets_a_motor_that_moves_it_and_says_so(tmp_path, third_pa
     assert json.loads(r.stdout)["distance_m"] > 1.0  # it drives (the 3pi's motor barely moved it)
 
 
+@pytest.mark.quick
 def test_tuner_bounds_follow_the_robot(xacro_path):
     from tuner.search.space import DEFAULT_BOUNDS, robot_bounds
 
@@ -247,6 +266,7 @@ def test_unknown_motor_lists_the_catalogue(xacro_path):
     assert "not in the motor catalogue" in line and "pololu-mp-6v-30" in line
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("changes,cause", [
     ({"cad.sensor_height": 0.028}, "likely sensor height: 28.0 mm above the floor"),  # above the working range
     # hand: outer sensor 3.5 × 9.525 mm + half the 19 mm line at S = 40 mm: atan(0.04284 / 0.04) = 0.82 rad

@@ -63,6 +63,7 @@ def default_twin():
     return DigitalTwin(track="default")
 
 
+@pytest.mark.quick
 def test_firmware_in_the_loop_lap_is_within_one_percent_of_the_c_lap(laps):
     c_lap, pil_lap, _, _ = laps
     assert c_lap.completed and pil_lap.completed, pil_lap.detail
@@ -212,6 +213,7 @@ def test_unrunnable_configuration_is_refused_before_the_lap(pil_ready):
     assert done.returncode == 2 and "at most 8 sensors" in done.stderr, done.stderr
 
 
+@pytest.mark.quick
 def test_without_simavr_the_command_says_what_to_install(monkeypatch, capsys):
     from twin.pil import mcu
     from twin.cli.main import main
@@ -275,6 +277,7 @@ def test_firmware_command_writes_what_avrdude_flashes(pil_ready, tmp_path):
     assert again.returncode == 2 and (out / "notes.txt").read_text() == "mine"
 
 
+@pytest.mark.quick
 def test_an_mcu_attached_before_the_physics_stepped_reads_a_dark_floor(pil_ready, default_twin):
     """mj_ray stops the whole process on a sensor without a pose: the glue reads no light instead."""
     import mujoco

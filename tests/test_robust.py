@@ -16,6 +16,7 @@ from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 
 
+@pytest.mark.quick
 def test_risk_measures_by_hand():
     costs = np.array([[1.0, 2.0, 3.0, 10.0], [4.0, 4.0, 4.0, 4.0]])
     np.testing.assert_array_equal(Risk.parse("mean")(costs), [4.0, 4.0])
@@ -28,6 +29,7 @@ def test_risk_measures_by_hand():
             Risk.parse(bad)
 
 
+@pytest.mark.quick
 def test_envelope_is_every_combination_and_held_out_seeds_are_new():
     e = Envelope.of({"motion.mu": (0.6, 0.75, 0.9), "motor.supply_voltage": (4.8, 6.0)}, [0, 1])
     assert len(e.scenarios) == 6 and len(e) == 12
@@ -35,6 +37,7 @@ def test_envelope_is_every_combination_and_held_out_seeds_are_new():
     assert not set(held_out_seeds(e, 20)) & set(e.seeds) and len(set(held_out_seeds(e, 20))) == 20
 
 
+@pytest.mark.quick
 def test_robust_batched_laps_equal_the_same_laps_run_one_by_one():
     twin = DigitalTwin(track="oval")
     space = SearchSpace(twin.space, ["control.v_max", "control.kp"])

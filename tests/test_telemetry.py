@@ -33,6 +33,7 @@ def recorded(oval, tmp_path_factory):
     return str(path), hidden, lap
 
 
+@pytest.mark.quick
 def test_telemetry_round_trip(recorded):
     path, _, lap = recorded
     tel = read_telemetry(path)

@@ -10,6 +10,8 @@ from mjcf import MjcfError
 from mjcf.track import BUILTIN_SEGMENTS, GROUND_GREY, LINE_GREY, Track, builtin, centre_from_segments
 from mjcf.track_image import track_from_png
 
+pytestmark = pytest.mark.quick  # the whole module is in the quick tier (tests/test_tiers.py)
+
 
 @pytest.mark.parametrize("name", list(BUILTIN_SEGMENTS))
 def test_builtin_tracks_close_and_are_counter_clockwise(name):

@@ -18,6 +18,7 @@ from mjcf.world import MOTORS, save_xml
 from twin.core.digital_twin import DigitalTwin
 
 
+@pytest.mark.quick
 def test_inertials_are_kept_exactly(tmp_path):
     path = write_robot(RobotDesign(), str(tmp_path / "robot"))
     spec, info = convert(path)
@@ -36,6 +37,7 @@ def test_inertials_are_kept_exactly(tmp_path):
     assert info.half_track == pytest.approx(RobotDesign().L)
 
 
+@pytest.mark.quick
 def test_saved_xml_reloads_with_same_masses_inertias_and_axes(tmp_path):
     twin = DigitalTwin(track="oval")
     model = twin.model()
@@ -50,6 +52,7 @@ def test_saved_xml_reloads_with_same_masses_inertias_and_axes(tmp_path):
     np.testing.assert_array_equal(reloaded.tex_data, model.tex_data)
 
 
+@pytest.mark.quick
 def test_third_party_urdf_converts(third_party_urdf):
     spec, info = convert(third_party_urdf)
     model = spec.compile()
@@ -70,6 +73,7 @@ def test_third_party_urdf_converts(third_party_urdf):
     assert visuals and all(model.geom_contype[i] == 0 and model.geom_conaffinity[i] == 0 for i in visuals)
 
 
+@pytest.mark.quick
 def test_third_party_robot_drives_straight_on_equal_voltages(third_party_urdf):
     twin = DigitalTwin(track="oval", robot_urdf=third_party_urdf)
     model = twin.model()
@@ -86,6 +90,7 @@ def test_third_party_robot_drives_straight_on_equal_voltages(third_party_urdf):
     assert abs(yaw_of(data.qpos[3:7]) - yaw0) < math.radians(0.1)
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("text,match", [
     ("<robot name='x'><link name='a'></robot>", "not a well-formed URDF"),
     ("<robt name='x'/>", "expected <robot>"),
@@ -104,6 +109,7 @@ def test_bad_urdf_is_one_clear_error(tmp_path, text, match):
         convert(str(path))
 
 
+@pytest.mark.quick
 def test_named_wheels_must_exist(tmp_path):
     path = tmp_path / "robot.urdf"
     path.write_text(minimal_urdf())
