@@ -34,13 +34,13 @@ def test_pareto_front_and_trend_statements():
 
 def test_small_study_writes_charts_table_and_gains(tmp_path, capsys):
     out = tmp_path / "study"
-    code = main(["design", "--grid", "cad.L=0.035,0.055", "--grid", "cad.R=0.016,0", "--laps", "2",
+    code = main(["design", "--grid", "cad.L=0.035,0.055", "--grid", "cad.R=0.016,0.005", "--laps", "2",
                  "--max-iter", "2", "--workers", "1", "--out-dir", str(out), "--json", "-q"])
     assert code == 0
     summary = json.loads(capsys.readouterr().out)
     designs = summary["designs"]
     assert [d["ok"] for d in designs] == [True, False, True, False]
-    assert "cad.R" in designs[1]["error"]  # a design that cannot be built is reported, the others go on
+    assert "caster_radius" in designs[1]["error"]  # a design that cannot be built is reported, the others go on
     for name in ("lap_times.png", "pareto.png", "designs.csv", "designs.json"):
         assert (out / name).stat().st_size > 1000 or name == "designs.csv"
     assert (out / "lap_times.png").read_bytes()[:4] == b"\x89PNG"
@@ -55,7 +55,7 @@ def test_small_study_writes_charts_table_and_gains(tmp_path, capsys):
             assert int(row["laps_completed"]) == d["laps_completed"]
             assert {g: float(row[g]) for g in d["gains"]} == d["gains"]
         else:
-            assert row["median_lap_time_s"] == "" and "cad.R" in row["error"]
+            assert row["median_lap_time_s"] == "" and "caster_radius" in row["error"]
     # each design's reported laps are its tuned gains raced on noise seeds 1…laps: race them again through the library
     saved = json.loads((out / "designs.json").read_text())["designs"]
     for d, s in zip(designs, saved):

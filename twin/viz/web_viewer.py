@@ -9,12 +9,14 @@ Playwright's own browser download is not used.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import hashlib
 import os
 import shutil
 import signal
 import socket
 import subprocess
+import sys
 import time
 from typing import Iterator
 
@@ -41,16 +43,37 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def _server_executable() -> str:
+    """rerun's own binary (rerun-sdk ships it in ``rerun_cli``), else the ``rerun`` launcher."""
+    try:
+        import rerun_cli  # the binary's package, installed with rerun-sdk
+
+        binary = os.path.join(os.path.dirname(rerun_cli.__file__), "rerun")
+        if os.path.isfile(binary) and os.access(binary, os.X_OK):
+            return binary
+    except ImportError:
+        pass
+    return viewer_executable()
+
+
+def _die_with_parent() -> None:
+    """In the server's process, before it runs: be killed when the thread that started it ends, however this
+    process dies (Linux's PR_SET_PDEATHSIG; elsewhere nothing)."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # 1: PR_SET_PDEATHSIG
+
+
 @contextlib.contextmanager
 def served(recording: str) -> Iterator[str]:
     """Serve ``recording`` with ``rerun --serve-web``; yields the URL that opens it in the web viewer."""
     check_recording(recording)
     web, grpc = free_port(), free_port()
     # a session of its own: the venv's `rerun` is a Python launcher that runs the binary as its child, and killing
-    # the launcher alone would leave the server running
-    server = subprocess.Popen([viewer_executable(), "--serve-web", recording, "--web-viewer-port", str(web),
+    # the launcher alone would leave the server running. The binary itself, where rerun-sdk ships it, is started
+    # directly and told to die with this process: a test killed at its time limit left servers running for hours
+    server = subprocess.Popen([_server_executable(), "--serve-web", recording, "--web-viewer-port", str(web),
                                "--port", str(grpc)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                              start_new_session=True)
+                              start_new_session=True, preexec_fn=_die_with_parent)
     try:
         deadline = time.monotonic() + SERVER_START_S
         while True:  # up when its web port answers
