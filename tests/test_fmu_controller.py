@@ -106,10 +106,18 @@ def run_cli(argv, capsys) -> tuple[int, str, str]:
     ("model-exchange", "Model Exchange only"),
     ("fmi1", "FMI 1.0 is not supported"),
 ])
+@pytest.mark.quick
 def test_a_broken_fmu_is_one_line(tmp_path, capsys, what, needle):
     path = broken_fmu(str(tmp_path / f"{what}.fmu"), what)
     code, out, err = run_cli(["lap", "--controller-fmu", path], capsys)
     assert code == 2 and err.startswith("error: --controller-fmu") and err.count("\n") == 1 and needle in err, err
+
+
+@pytest.mark.quick
+def test_the_library_refuses_an_fmi_1_controller(tmp_path):
+    path = broken_fmu(str(tmp_path / "old.fmu"), "fmi1")
+    with pytest.raises(TwinError, match="FMI 1.0 is not supported"):
+        ControllerFmu(path)
 
 
 @pytest.mark.parametrize("argv, needle", [

@@ -106,6 +106,7 @@ def test_bad_live_input_is_one_line_and_exit_2(tmp_path, capsys, args, needle):
 
 # --- state and re-alignment -----------------------------------------------------------------------------------
 
+@pytest.mark.quick
 def test_implausible_wire_laps_are_reported_and_never_realigned(monkeypatch):
     """Six implausible laps, each far off the twin's 8.78 s: none starts a re-alignment; a plausible 8.8 s lap
     after them does (0.2 % off, above the 0.1 % threshold). The aligner is a stand-in that notes what it is asked."""

@@ -80,6 +80,7 @@ def _lap(completed: bool, **kw) -> LapResult:
     return LapResult(**{**base, **kw})
 
 
+@pytest.mark.quick
 def test_a_failed_lap_has_zero_completion_and_the_median_of_the_completed_laps():
     done, failed = lap_outputs(_lap(True)), lap_outputs(_lap(False))
     assert done == {"lap_time_s": 12.0, "completed": 1.0, "energy_j": 9.0, "max_cross_track_m": 0.01}

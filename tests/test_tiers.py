@@ -47,6 +47,8 @@ QUICK: dict[str, list[str]] = {
     "tuner.search": ["test_tuner.py::test_one_step_on_the_simulation_lowers_the_lap_time"],
     "tuner.align": ["test_align.py::test_unexplained_lap_time_is_reported_with_the_reachable_range"],
     "tuner.live": ["test_live_twin.py::test_implausible_wire_laps_are_reported_and_never_realigned"],
+    "tuner.sensitivity": ["test_sensitivity.py::test_a_failed_lap_has_zero_completion_and_the_median_of_the_completed_laps"],
+    "twin.fmi": ["test_fmu_controller.py::test_the_library_refuses_an_fmi_1_controller"],
     "tuner.studies": ["test_sweep.py::test_points_are_the_laps_run_one_by_one",
                       "test_design.py::test_pareto_front_and_trend_statements"],
 }
