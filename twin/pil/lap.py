@@ -31,6 +31,9 @@ from twin.pil.mcu import Mcu, state_size
 from twin.core.variant import Variant
 from twin.telemetry.wire import LineSplitter, WireError, decode
 
+BOARD_SENSORS = 5  # LF_BOARD_SENSORS: the 3pi's own sensor lines, PC0..PC4
+BUTTON_B = 2  # lf_avr_buttons: A 1, B 2, C 4
+TRIMMER_V = 2.5  # the user trimmer on ADC7, at mid travel [V]
 PIL_MAGIC = core.MAGIC + 1.0  # the C callback acts on core.MAGIC only: this head is the glue's
 CHUNK_S = 0.1  # simulated seconds per call into the glue: Python judges the lap and drains the UART this often
 TELEMETRY_EVERY = 2  # one sample line every 2 ticks, as the emulator's default
@@ -100,6 +103,8 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
     telemetry = _Telemetry(on_line)
     with Mcu(elf) as mcu:
         mcu.eeprom(fw.config_image(params, sensor.timeout_us, telemetry_every))
+        # more than the board's five sensors take the LCD's control lines: the LCD is unplugged (board_3pi.h)
+        mcu.board(params.count <= BOARD_SENSORS, twin.physics().supply_voltage, TRIMMER_V, 0)
         sim = _place(model, data, twin, lap, seed)
         mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
         steps = max(1, round(CHUNK_S / model.opt.timestep))
@@ -121,7 +126,7 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
             mcu.zero_time()
             mcu.reset_stats()
             telemetry.offset = 0.0
-            mcu.button(True)
+            mcu.buttons(BUTTON_B)
             _drive(mcu, data, sim, judge, telemetry, steps)
         status = mcu.status()
         overruns = int.from_bytes(mcu.peek("fw_overruns", 2), "little")
@@ -218,7 +223,7 @@ def _drive(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, teleme
     while not judge.done:
         failure = _advance(mcu, data, telemetry, steps)
         if pressed and mcu.state().mode == RUN:
-            mcu.button(False)
+            mcu.buttons(0)
             pressed = False
         try:
             judge.feed(core.records_since(data.userdata, sim, consumed))
