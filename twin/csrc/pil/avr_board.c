@@ -23,6 +23,7 @@
 #include "avr_glue.h"
 
 #define SENSOR_READ_S 0.005 /* a PINB read this soon after a sensor line's release belongs to the sensor read */
+#define NOTE_MIN_S 0.0005 /* shorter: Timer1's registers rewritten one after the other (a note's end, the next's start) */
 #define BUTTON_MASK ((1u << 1) | (1u << 4) | (1u << 5))
 
 void lf_avr_board(lf_avr *a, int32_t lcd_plugged, double battery_v, double trimmer_v, int64_t trace_every) {
@@ -35,15 +36,16 @@ void lf_avr_board(lf_avr *a, int32_t lcd_plugged, double battery_v, double trimm
   }
 }
 
-/* --- buttons */
-static void on_pinb_read(struct avr_irq_t *irq, uint32_t value, void *param) {
+/* --- buttons: simavr's PINB reader, and a count of the reads that poll the buttons */
+static uint8_t on_pinb_read(avr_t *avr, avr_io_addr_t addr, void *param) {
   lf_avr *a = (lf_avr *)param;
+  uint8_t v = a->board.pinb_read(avr, addr, a->board.pinb_param);
   uint8_t inputs = (uint8_t)(~reg(a, DDRB) & reg(a, PORTB) & BUTTON_MASK);
-  (void)irq;
-  (void)value;
-  if (!inputs || a->avr->cycle - a->board.last_release < cycles_of(a, SENSOR_READ_S)) return;
-  a->board.last_poll = a->avr->cycle;
-  a->board.polls++;
+  if (inputs && a->avr->cycle - a->board.last_release >= cycles_of(a, SENSOR_READ_S)) {
+    a->board.last_poll = a->avr->cycle;
+    a->board.polls++;
+  }
+  return v;
 }
 
 /* --- LEDs */
@@ -115,8 +117,12 @@ static void buzzer_update(lf_avr *a, int restart) {
   sounding = hz > 0 && duty > 0 && duty < 1 && (reg(a, DDRB) & (1u << LF_BUZZER_PIN));
   if (b->sounding && (!sounding || restart || hz != b->note.hz || duty != b->note.duty)) {
     b->note.end = a->avr->cycle;
-    if (b->nnotes < NOTES) b->notes[b->nnotes++] = b->note;
-    else b->lost.notes_lost++;
+    if (b->note.end - b->note.start < cycles_of(a, NOTE_MIN_S)) { /* registers passing through a state, not a note */
+    } else if (b->nnotes < NOTES) {
+      b->notes[b->nnotes++] = b->note;
+    } else {
+      b->lost.notes_lost++;
+    }
     b->sounding = 0;
   }
   if (sounding && !b->sounding) {
@@ -163,10 +169,12 @@ void pil_connect_board(lf_avr *a) {
   static const uint16_t timer1[] = {TCCR1A, TCCR1B, ICR1L, OCR1AL, OCR1BL};
   static const uint16_t watched[] = {SPCR, TWCR, ADCSRA, UCSR0B, ACSR, TIMSK1, EIMSK};
   size_t i;
-  avr_irq_register_notify(avr_io_getirq(a->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), IOPORT_IRQ_REG_PIN), on_pinb_read, a);
+  avr_io_addr_t pinb = AVR_DATA_TO_IO(PINB);
+  a->board.pinb_read = a->avr->io[pinb].r.c, a->board.pinb_param = a->avr->io[pinb].r.param;
+  a->avr->io[pinb].r.c = on_pinb_read, a->avr->io[pinb].r.param = a; /* simavr refuses a second reader: chain it */
   avr_irq_register_notify(avr_io_getirq(a->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), IOPORT_IRQ_REG_PORT), on_port_b, a);
-  for (i = 0; i < sizeof timer1 / sizeof timer1[0]; i++) pil_watch_write(a, timer1[i], on_timer1_write);
-  for (i = 0; i < sizeof watched / sizeof watched[0]; i++) pil_watch_write(a, watched[i], on_peripheral_write);
+  for (i = 0; i < sizeof timer1 / sizeof timer1[0]; i++) pil_watch_write(a, timer1[i], on_timer1_write, 0);
+  for (i = 0; i < sizeof watched / sizeof watched[0]; i++) pil_watch_write(a, watched[i], on_peripheral_write, 0);
 }
 
 /* --- the physics trace */

@@ -129,6 +129,8 @@ typedef struct {
   lf_lcd_frame frames[LCD_FRAMES];
   int32_t nframes;
   /* buttons */
+  avr_io_read_t pinb_read;
+  void *pinb_param;
   int32_t buttons;
   uint64_t last_poll, last_release;
   int64_t polls;
@@ -157,13 +159,16 @@ typedef struct {
   avr_io_write_t orig, mine;
   void *orig_param;
   struct lf_avr *a;
+  int32_t before;          /* mine runs before simavr's own write (the register still holds its old value) */
 } write_hook;
-#define WRITE_HOOKS 24
+#define WRITE_HOOKS 32
 
 typedef struct lf_avr {
   avr_t *avr;
   write_hook hooks[WRITE_HOOKS];
   int32_t nhooks;
+  struct avr_timer_t *timers[3];             /* Timer0, 1, 2 (avr_mcu.c corrects their phase-correct modes) */
+  uint8_t cs_div[3][16];                     /* their prescaler tables as simavr built them */
   uint32_t f_cpu;
   /* the twin firmware's globals (data-space addresses, 0 where absent): with all four, each tick is traced from RAM */
   uint16_t a_state, a_raw, a_tick_mode, a_ticks;
@@ -203,7 +208,8 @@ static inline uint64_t cycles_of(const lf_avr *a, double seconds) { return (uint
 /* Shared by the glue's files only: not exported from the library. */
 #pragma GCC visibility push(hidden)
 /* avr_mcu.c */
-void pil_watch_write(lf_avr *a, uint16_t addr, avr_io_write_t fn); /* fn(avr, addr, v, a) after simavr's own write */
+void pil_watch_write(lf_avr *a, uint16_t addr, avr_io_write_t fn, int before); /* fn(avr, addr, v, a) after (or
+                                                                                  before) simavr's own write */
 /* avr_sensors.c */
 void pil_connect_sensors(lf_avr *a); /* watch the ports' directions: a sensor line released, a motor line's DDR */
 /* avr_motors.c */

@@ -10,6 +10,7 @@
 #include <simavr/avr_eeprom.h>
 #include <simavr/avr_extint.h>
 #include <simavr/avr_ioport.h>
+#include <simavr/avr_timer.h>
 #include <simavr/sim_io.h>
 #include <simavr/sim_irq.h>
 
@@ -30,18 +31,66 @@ static void no_sleep(avr_t *avr, avr_cycle_count_t how_long) {
 
 static void chained_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
   write_hook *h = (write_hook *)param;
+  if (h->before) h->mine(avr, addr, v, h->a);
   if (h->orig) h->orig(avr, addr, v, h->orig_param);
   else avr->data[addr] = v;
-  h->mine(avr, addr, v, h->a);
+  if (!h->before) h->mine(avr, addr, v, h->a);
 }
 
-void pil_watch_write(lf_avr *a, uint16_t addr, avr_io_write_t fn) {
+void pil_watch_write(lf_avr *a, uint16_t addr, avr_io_write_t fn, int before) {
   avr_io_addr_t io = AVR_DATA_TO_IO(addr);
   write_hook *h;
   if (a->nhooks >= WRITE_HOOKS) abort(); /* a programming error of the glue: WRITE_HOOKS is sized for its hooks */
   h = &a->hooks[a->nhooks++];
-  h->orig = a->avr->io[io].w.c, h->orig_param = a->avr->io[io].w.param, h->mine = fn, h->a = a;
+  h->orig = a->avr->io[io].w.c, h->orig_param = a->avr->io[io].w.param, h->mine = fn, h->a = a, h->before = before;
   a->avr->io[io].w.c = chained_write, a->avr->io[io].w.param = h;
+}
+
+/* simavr 1.6's timers (cores/sim_megax8.h) know no Timer1 WGM 10 and 11 (phase-correct PWM with TOP = ICR1 or OCR1A,
+ * the mode libpololu-avr's OrangutanBuzzer plays notes in: without it Timer1 never overflows and is_playing() waits
+ * for ever) nor the 8-bit timers' WGM 1 and 5, and it counts every phase-correct mode up to TOP and back to 0 in
+ * (TOP + 1) prescaled clocks instead of 2 TOP (datasheet, "Phase Correct PWM Mode"). The glue adds the missing modes
+ * and, while a timer is in a phase-correct mode, doubles its prescaler: overflows (and the notes they time) then come
+ * every 2 (TOP + 1) clocks, within 1/TOP of the MCU's period. */
+static const uint8_t tccr_a[3] = {TCCR0A, TCCR1A, TCCR2A}, tccr_b[3] = {TCCR0B, TCCR1B, TCCR2B};
+
+static int phase_correct(int k, int wgm) {
+  return k == 1 ? (wgm >= 1 && wgm <= 3) || (wgm >= 8 && wgm <= 11) : wgm == 1 || wgm == 5;
+}
+
+static void before_tccr(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+  lf_avr *a = (lf_avr *)param;
+  int k, i;
+  (void)avr;
+  for (k = 0; k < 3; k++) {
+    uint8_t ra = addr == tccr_a[k] ? v : reg(a, tccr_a[k]), rb = addr == tccr_b[k] ? v : reg(a, tccr_b[k]);
+    int wgm = (ra & 3) | ((rb >> 1) & (k == 1 ? 0xc : 0x4)), slow = phase_correct(k, wgm);
+    if (!a->timers[k] || (addr != tccr_a[k] && addr != tccr_b[k])) continue;
+    for (i = 1; i < 8; i++) /* CS 0: stopped; AVR_TIMER_EXTCLK_CHOOSE (0x80): the Tn pin clocks it */
+      if (a->cs_div[k][i] < 0x80) a->timers[k]->cs_div[i] = (uint8_t)(a->cs_div[k][i] + slow);
+  }
+}
+
+static void fix_timers(lf_avr *a) {
+  static const avr_timer_wgm_t fast8 = AVR_TIMER_WGM_FASTPWM8(), fast9 = AVR_TIMER_WGM_FASTPWM9(),
+                               fast10 = AVR_TIMER_WGM_FASTPWM10(), ocr = AVR_TIMER_WGM_OCPWM(),
+                               icr = AVR_TIMER_WGM_ICPWM();
+  avr_io_t *port;
+  int k;
+  for (port = a->avr->io_port; port; port = port->next) {
+    avr_timer_t *t = (avr_timer_t *)port;
+    if (!port->kind || strcmp(port->kind, "timer") || t->name < '0' || t->name > '2') continue;
+    k = t->name - '0';
+    a->timers[k] = t;
+    memcpy(a->cs_div[k], t->cs_div, sizeof t->cs_div);
+    t->wgm_op[1] = fast8; /* counted as a fast 8-bit PWM at twice the prescaler, as all phase-correct modes */
+    if (k == 1) t->wgm_op[2] = fast9, t->wgm_op[3] = fast10, t->wgm_op[10] = icr, t->wgm_op[11] = ocr;
+    else t->wgm_op[5] = ocr;
+  }
+  for (k = 0; k < 3; k++) {
+    pil_watch_write(a, tccr_a[k], before_tccr, 1);
+    pil_watch_write(a, tccr_b[k], before_tccr, 1);
+  }
 }
 
 /* A program's flash (and EEPROM) image onto a fresh MCU. NULL with the reason in err if simavr cannot. Python has
@@ -86,6 +135,7 @@ lf_avr *lf_avr_open(const uint8_t *flash, uint32_t flash_size, const uint8_t *ee
     lf_avr_close(a);
     return 0;
   }
+  fix_timers(a);
   pil_connect_uart(a);
   pil_connect_sensors(a);
   pil_connect_motors(a);

@@ -73,8 +73,8 @@ static void on_compare_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *pa
 void pil_connect_motors(lf_avr *a) {
   int i;
   for (i = 0; i < 2; i++) {
-    pil_watch_write(a, motors[i].ocra, on_compare_write);
-    pil_watch_write(a, motors[i].ocrb, on_compare_write);
+    pil_watch_write(a, motors[i].ocra, on_compare_write, 0);
+    pil_watch_write(a, motors[i].ocrb, on_compare_write, 0);
   }
 }
 
