@@ -50,7 +50,7 @@ def mcu_only(twin: DigitalTwin, simulated_s: float) -> None:
     data = mujoco.MjData(model)
     with Mcu(fw.check_elf(fw.build("robot"), fw.TRACE_SYMBOLS)) as mcu:
         mcu.eeprom(fw.config_image(lap.params, lap.sensor.timeout_us, pil.TELEMETRY_EVERY))
-        sim = pil._place(model, data, twin, lap, 0)
+        sim = pil.place_robot(model, data, twin, lap, 0)
         mujoco.mj_forward(model, data)  # the sensors' rays need the start pose's kinematics
         mcu.attach(model, data, sim, 1e9)
         mcu.run_cycles(int(simulated_s * fw.F_CPU_HZ))

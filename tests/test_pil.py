@@ -287,7 +287,7 @@ def test_an_mcu_attached_before_the_physics_stepped_reads_a_dark_floor(pil_ready
     data.site_xmat[:] = 0.0  # as before any mj_step1 or mj_forward
     with Mcu(fw.check_elf(fw.build("robot"), fw.TRACE_SYMBOLS)) as mcu:
         mcu.eeprom(fw.config_image(lap.params, lap.sensor.timeout_us, 2))
-        sim = pil._place(model, data, default_twin, lap, 0)
+        sim = pil.place_robot(model, data, default_twin, lap, 0)
         data.site_xmat[:] = 0.0
         mcu.attach(model, data, sim, 1.0)
         assert mcu.run_cycles(2_000_000) == 0  # 0.1 s: about 20 reads
