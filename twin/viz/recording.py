@@ -28,11 +28,15 @@ TIMELINE = "sim_time"
 MAP_PIXEL_M = 0.004  # the floor image in the recording: 4 mm pixels keep a default-track file ~0.2 MB
 
 
-def lap_blueprint(count: int) -> rrb.Blueprint:
+def lap_blueprint(count: int, shows: bool = False) -> rrb.Blueprint:
+    robot = [rrb.TextLogView(name="LCD", origin="/robot/lcd"),
+             rrb.TimeSeriesView(name="buzzer [Hz]", origin="/robot/buzzer"),
+             rrb.TimeSeriesView(name="LEDs (1 lit)", origin="/robot/led")] if shows else []
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial2DView(name="track", origin="/track"),
             rrb.Vertical(
+                *robot,
                 rrb.TimeSeriesView(name="line angle e [rad]", origin="/control/e"),
                 rrb.TimeSeriesView(name="speed v [m/s]", origin="/control/v"),
                 rrb.TimeSeriesView(name="turn rate ω [rad/s]", origin="/control/omega"),
@@ -145,16 +149,39 @@ def recording_file(out_path: str, blueprint: rrb.Blueprint) -> Iterator[rr.Recor
 
 
 def save_laps(save: str | None, view: bool, track: Track, texture: FloorTexture, results: Sequence[LapResult],
-              names: Sequence[str]) -> str | None:
-    """Laps to a saved recording and/or the viewer (see :func:`recording`); returns the saved path, if any."""
+              names: Sequence[str], shows: dict | None = None) -> str | None:
+    """Laps to a saved recording and/or the viewer (see :func:`recording`); returns the saved path, if any.
+    ``shows``: what the robot showed during the first lap (:func:`log_shows`)."""
     if not save and not view:
         return None
     count = results[0].trace.count if results and results[0].trace else 8
-    with recording(save, view, lap_blueprint(count)) as rec:
+    with recording(save, view, lap_blueprint(count, shows is not None)) as rec:
         log_track(rec, track, texture)
         for r, n in zip(results, names):
             log_lap(rec, track, texture, r, n)
+        if shows is not None:
+            log_shows(rec, shows)
     return os.path.abspath(save) if save else None
+
+
+def log_shows(rec: rr.RecordingStream, shows: dict) -> None:
+    """What the robot showed, on the lap's timeline [s]: ``lcd`` [(t, text)] as a text log under /robot/lcd, ``notes``
+    [(start, end, Hz)] as the buzzer's frequency under /robot/buzzer (0 between notes), ``leds`` [(t, red, green)]
+    as 0/1 series under /robot/led/red and /robot/led/green."""
+    for t, text in shows.get("lcd", ()):
+        rr.set_time(TIMELINE, duration=t, recording=rec)
+        rr.log("robot/lcd", rr.TextLog(" / ".join(line.rstrip() for line in text.split("\n"))), recording=rec)
+    rec.reset_time()
+    notes = shows.get("notes", ())
+    if notes:
+        t = np.array([x for a, b, _ in notes for x in (a, b)])
+        hz = np.array([x for _, _, f in notes for x in (f, 0.0)])
+        _series(rec, "robot/buzzer", t, hz)
+    leds = shows.get("leds", ())
+    if leds:
+        t = np.array([e[0] for e in leds])
+        _series(rec, "robot/led/red", t, np.array([float(e[1]) for e in leds]))
+        _series(rec, "robot/led/green", t, np.array([float(e[2]) for e in leds]))
 
 
 def save_charts(save: str | None, view: bool, charts: dict[str, str]) -> str | None:

@@ -34,9 +34,10 @@ from twin.pil import firmware as fw
 from twin.pil.board.display import BoardLog
 from twin.pil.board.operator import BUTTONS, Operator, Press, Script, Seen
 from twin.pil.board.report import BoardReport
-from twin.pil.lap import BOARD_SENSORS, CHUNK_S, TRIMMER_V, Telemetry, advance, place_robot
-from twin.pil.mcu import Mcu
-from twin.pil.program import Program
+from twin.pil.lap import BOARD_SENSORS, CHUNK_S, TRIMMER_V, McuReport, Telemetry, advance, place_robot, run_pil_lap, \
+    runnable_firmware
+from twin.pil.mcu import Mcu, glue
+from twin.pil.program import Program, load_program
 
 TRACE_PERIOD_S = 0.001  # the physics trace's period: every step at the default 1 ms
 
@@ -47,6 +48,30 @@ def check_board(twin: DigitalTwin) -> None:
     if count != BOARD_SENSORS:
         raise TwinError(f"sensor.count: a 3pi program reads the board's {BOARD_SENSORS} reflectance sensors (PC0..PC4); "
                         f"the robot has {count} (--set sensor.count={BOARD_SENSORS})")
+
+
+def runnable_program(twin: DigitalTwin, path: str) -> Program:
+    """The program in ``path`` (ELF or HEX), checked against the twin before any lap: the twin's own firmware against
+    its parameters (:func:`twin.pil.lap.runnable_firmware`), any other program against the board; a one-line
+    TwinError otherwise (a missing simavr included)."""
+    program = load_program(path)
+    if program.traced:
+        runnable_firmware(twin, path)
+    else:
+        check_board(twin)
+        glue()
+    return program
+
+
+def run_program_lap(twin: DigitalTwin, program: Program, seed: int = 0, limits: LapLimits = LapLimits(),
+                    keep_trace: bool = True, operator: Operator | Script | None = None,
+                    on_line: Callable[[float, str], None] | None = None) -> tuple[LapResult, McuReport | BoardReport]:
+    """A lap of ``program``: the twin's own firmware as :func:`twin.pil.lap.run_pil_lap` runs it (traced from its RAM),
+    any other on the board (:func:`run_board_lap`)."""
+    if program.traced:
+        return run_pil_lap(twin, program.path, seed=seed, limits=limits, keep_trace=keep_trace, on_line=on_line)
+    return run_board_lap(twin, program, seed=seed, limits=limits, keep_trace=keep_trace, operator=operator,
+                         on_line=on_line)
 
 
 class LapClock:
