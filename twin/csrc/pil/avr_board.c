@@ -51,7 +51,7 @@ static uint8_t on_pinb_read(avr_t *avr, avr_io_addr_t addr, void *param) {
 /* --- LEDs */
 static int led_line(const lf_avr *a, int pin) {
   uint8_t bit = (uint8_t)(1u << pin);
-  if (pin == LF_LED_RED_PIN && (reg(a, UCSR0B) & 0x08)) return 1; /* TXEN0: the UART drives TX, idling high */
+  if (pin == LF_LED_RED_PIN && a->board.txen) return 1; /* TXEN0: the UART drives TX, idling high */
   return (reg(a, DDRD) & bit) && (reg(a, PORTD) & bit);
 }
 
@@ -156,7 +156,12 @@ static void on_peripheral_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void 
     case SPCR: used = v & 0x40 ? LF_USED_SPI : 0; break;
     case TWCR: used = v & 0x04 ? LF_USED_TWI : 0; break;
     case ADCSRA: used = (v & 0x40) && (reg(a, ADMUX) & 0x0f) < 6 ? LF_USED_ADC_PIN : 0; break;
-    case UCSR0B: used = v & 0x10 ? LF_USED_UART_RX : 0; pil_led_update(a); break;
+    case UCSR0B: /* simavr's reset leaves TXEN0 set; only a program's own write turns the transmitter on here */
+      used = v & 0x10 ? LF_USED_UART_RX : 0;
+      pil_led_update(a);
+      a->board.txen = (v & 0x08) != 0;
+      pil_led_update(a);
+      break;
     case ACSR: used = v & 0x08 ? LF_USED_COMPARATOR : 0; break;
     case TIMSK1: used = v & 0x20 ? LF_USED_CAPTURE : 0; break;
     case EIMSK: used = v & 0x03 ? LF_USED_INT01 : 0; break;

@@ -139,7 +139,7 @@ typedef struct {
   lf_note note;
   lf_note notes[NOTES];
   int32_t nnotes;
-  uint8_t pb2_seen;
+  uint8_t pb2_seen, txen;
   /* LEDs: on-cycles integrated over the step, the shown state, its changes */
   uint64_t led_since, led_on[2];
   int32_t led_now[2], led_shown[2];

@@ -9,7 +9,8 @@ FILE``) presses instead what a JSON file lists, in order, each at a time or when
     {"presses": [{"button": "B", "lcd": "Press B"},
                  {"button": "B", "at": 9.5, "hold": 0.3}]}
 
-``at`` is seconds since power-up; ``lcd`` a text the screen must show (both lines joined by a space, spaces collapsed);
+``at`` is seconds since power-up; ``lcd`` a text the screen must show (both lines joined by a space; case and runs of
+spaces ignored);
 with both, the press waits for both. After the last press nobody touches the robot.
 
 Decisions are taken between chunks of simulated time (:data:`twin.pil.lap.CHUNK_S`), from the simulated state only:
@@ -100,7 +101,7 @@ class Script:
         step = self.steps[self.next]
         if step.at is not None and seen.now < step.at:
             return None
-        if step.lcd is not None and plain(step.lcd) not in plain(seen.screen):
+        if step.lcd is not None and plain(step.lcd).lower() not in plain(seen.screen).lower():
             return None
         self.next += 1
         self.released = seen.now + step.hold
