@@ -6,8 +6,9 @@ DC motor's no-load speed at duty x supply), the buttons it saw pressed (by the d
 by a script), the notes it played (Timer1's frequency and the overflow count it timed them with), a lap it follows.
 A program that writes garbage or never drives is a lap result with a reason, within the time limit.
 
-Pololu's own examples (3pi-linefollower, 3pi-linefollower-pid) run when LIBPOLOLU_AVR names a libpololu-avr source
-tree with the library built for the atmega328p (it never goes into the project; see the README).
+Pololu's own examples (3pi-linefollower, 3pi-linefollower-pid; 3pi-mazesolver in the maze) run when LIBPOLOLU_AVR
+names a libpololu-avr source tree with the library built for the atmega328p (it never goes into the project; see the
+README).
 """
 
 from __future__ import annotations
@@ -175,6 +176,15 @@ def test_a_register_level_follower_laps_the_oval_deterministically(build):
     assert report2.lcd == report.lcd
 
 
+def test_a_maze_solver_of_our_own_reaches_the_finish_spot(build):
+    lap, report = run(build("maze"), timeout_s=60.0, track="maze", keep_trace=True)
+    assert lap.completed and lap.detail == "finish reached", lap.detail
+    assert lap.distance_m > lap.track_length_m  # it explored before it found the way
+    assert lap.max_cross_track_m < 0.1 and [p.button for p in report.presses] == ["B"]
+    xy = lap.trace.records[-1, 1:3]
+    assert np.hypot(*(xy - three_pi("maze").track.finish_xy)) <= 0.06
+
+
 def cli(*args):
     return subprocess.run([*RUN_CLI, *args], capture_output=True, text=True, timeout=600)
 
@@ -215,6 +225,7 @@ def test_bad_programs_and_inputs_are_one_line_and_exit_2(build, tmp_path):
         (["--firmware", good, "--operator", str(script)], "button must be A, B or C"),
         (["--firmware", good, "--operator", str(tmp_path / "none.json")], "no such file"),
         (["--operator", str(script)], "--operator: presses buttons for a 3pi program"),
+        (["--track", "maze"], "has no maze strategy"),
     ]
     for args, needle in cases:
         done = cli("lap", "--track", "oval", *args)
@@ -225,8 +236,9 @@ POLOLU = os.environ.get("LIBPOLOLU_AVR")
 
 
 @pytest.mark.skipif(not POLOLU, reason="LIBPOLOLU_AVR (a built libpololu-avr source tree) is not set")
-@pytest.mark.parametrize("example", ["3pi-linefollower", "3pi-linefollower-pid"])
-def test_pololus_own_line_followers_lap_the_default_track(example, tmp_path):
+@pytest.mark.parametrize("example, track", [("3pi-linefollower", "default"), ("3pi-linefollower-pid", "default"),
+                                            ("3pi-mazesolver", "maze")])
+def test_pololus_own_examples_lap_the_default_track_and_solve_the_maze(example, track, tmp_path):
     """Pololu's examples, built unmodified as their Makefile builds them (examples_templates/<example>/Makefile)."""
     src = os.path.join(POLOLU, "examples_templates", example)
     include = tmp_path / "include"
@@ -238,7 +250,7 @@ def test_pololus_own_line_followers_lap_the_default_track(example, tmp_path):
     subprocess.run(["avr-gcc", "-g", "-Wall", "-mcall-prologues", "-mmcu=atmega328p", "-Os", f"-I{include}",
                     *(os.path.join(src, f) for f in os.listdir(src) if f.endswith(".c")), f"-L{POLOLU}",
                     "-Wl,-gc-sections", "-lpololu_atmega328p", "-Wl,-relax", "-o", elf], check=True, timeout=300)
-    lap, report = run(hex_of(elf), timeout_s=60.0, track="default")
+    lap, report = run(hex_of(elf), timeout_s=60.0, track=track)
     assert lap.completed, lap.detail
     assert [p.button for p in report.presses] == ["B", "B"] and report.restarts == 1  # go, calibrate, go
     assert math.isfinite(lap.lap_time_s) and lap.max_cross_track_m < 0.05

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 
+from mjcf.maze import Maze
 from twin.viz import recording
 from twin.cli import options as o
 from twin.cli.output import Output
@@ -37,7 +38,8 @@ def add_parser(sub) -> None:
 
 
 def lap_summary(result, twin, seed: int) -> dict:
-    return {**result.summary(), "track": twin.track.name, "track_length_m": twin.track.length_m, "seed": seed}
+    """The result with its track (a maze's length: its shortest path, as the result has it)."""
+    return {**result.summary(), "track": twin.track.name, "track_length_m": result.track_length_m, "seed": seed}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -66,7 +68,11 @@ def run(args: argparse.Namespace) -> int:
     elif mcu:
         summary["mcu"] = mcu.summary()
     out.document(summary)
-    if result.completed:
+    if isinstance(twin.track, Maze):
+        out.say((f"finish reached in {result.lap_time_s:.3f} s" if result.completed else
+                 f"finish not reached: {result.failure} ({result.detail}) after {result.simulated_s:.2f} s")
+                + f" in the {twin.track.name} (shortest path {result.track_length_m:.2f} m); {result.distance_m:.2f} m driven")
+    elif result.completed:
         out.say(f"lap completed in {result.lap_time_s:.3f} s on {twin.track.name} ({twin.track.length_m:.2f} m)")
     else:
         out.say(f"lap not completed: {result.failure} ({result.detail}) after {result.simulated_s:.2f} s, "

@@ -107,7 +107,8 @@ count_type = number(1, 10**9, integer=True)
 def add_world(p: argparse.ArgumentParser, track_default: str | None = "default", robot: bool = True) -> None:
     """--track, --metres-per-pixel, --robot: the robot and the floor it runs on."""
     p.add_argument("--track", default=track_default, metavar="NAME|PNG",
-                   help="built-in track (default, oval, circle, chicane) or an image of a dark closed line")
+                   help="built-in track (default, oval, circle, chicane; maze: a line maze for a maze-solving 3pi "
+                   "program) or an image of a dark closed line")
     p.add_argument("--metres-per-pixel", type=number(0.0, 0.1, lo_open=True), metavar="M",
                    help="scale of an image track without DPI metadata [m]")
     if robot:

@@ -31,6 +31,7 @@ from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
 from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.maze import refuse_maze
 from twin.core.outcomes import Outcome
 from twin.core.variant import Variant, field_key
 
@@ -68,6 +69,7 @@ def run_laps(
     """
     if not variants:
         return []
+    refuse_maze(twin.track, "the twin's controller")
     seeds = list(seed) if isinstance(seed, (list, tuple, range, np.ndarray)) else [seed] * len(variants)
     if len(seeds) != len(variants):
         raise TwinError(f"seeds: {len(seeds)} given for {len(variants)} laps")

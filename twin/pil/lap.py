@@ -25,6 +25,7 @@ from twin.core.closed_loop import check_seed, setup
 from twin.model.control import CALIBRATE, IDLE, RUN
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.maze import refuse_maze
 from twin.core.outcomes import Outcome, Status, outcome_of
 from twin.errors import TwinError
 from twin.pil.mcu import Mcu, state_size
@@ -96,6 +97,7 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
     check_seed(seed)
     lap = Variant.of(twin, {})
     params, sensor = lap.params, lap.sensor
+    refuse_maze(twin.track, "the twin's own firmware")
     elf = runnable_firmware(twin, elf_path)
     model = twin.model()
     data = mujoco.MjData(model)

@@ -17,6 +17,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from PIL import Image
 
+from mjcf.maze import Maze
 from mjcf.track import FloorTexture, Track
 from lf_common.files import atomic_path, check_output_file, rrd_is_ours
 from twin.viz import viewer
@@ -93,8 +94,16 @@ def log_lap(rec: rr.RecordingStream, track: Track, texture: FloorTexture, result
 def log_track(rec: rr.RecordingStream, track: Track, texture: FloorTexture) -> None:
     m = _Map(texture)
     rr.log("track/floor", rr.Image(m.image), static=True, recording=rec)
-    centre = m.px(np.vstack([track.centre, track.centre[:1]]))
-    rr.log("track/centre_line", rr.LineStrips2D([centre], radii=0.3, colors=[[40, 120, 230]]), static=True, recording=rec)
+    if isinstance(track, Maze):  # its segments, and the finish spot
+        strips = [m.px(seg) for seg in track.segments_xy]
+        rr.log("track/centre_line", rr.LineStrips2D(strips, radii=0.3, colors=[[40, 120, 230]]), static=True,
+               recording=rec)
+        rr.log("track/finish", rr.Points2D(m.px(track.finish_xy[None]), radii=3.0, colors=[[230, 60, 40]],
+                                           labels=["finish"]), static=True, recording=rec)
+    else:
+        centre = m.px(np.vstack([track.centre, track.centre[:1]]))
+        rr.log("track/centre_line", rr.LineStrips2D([centre], radii=0.3, colors=[[40, 120, 230]]), static=True,
+               recording=rec)
     start = m.px(track.centre[:1])
     rr.log("track/start", rr.Points2D(start, radii=3.0, colors=[[40, 200, 80]], labels=["start"]), static=True, recording=rec)
 

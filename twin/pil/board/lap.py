@@ -25,7 +25,8 @@ import numpy as np
 
 from twin.core import native as core
 from twin.core.digital_twin import DigitalTwin
-from twin.core.lap import COL, LapJudge, LapLimits, LapResult
+from twin.core.lap import COL, LapLimits, LapResult
+from twin.core.maze import judge_for
 from twin.core.outcomes import Outcome
 from twin.core.variant import Variant
 from twin.errors import TwinError
@@ -97,7 +98,7 @@ class LapClock:
             if not len(hit):
                 return
             rec = rec[hit[0]:]
-            self.judge = LapJudge(self.twin.track, self.limits, self.keep_trace)
+            self.judge = judge_for(self.twin.track, self.limits, self.keep_trace)
             self.start_s, self.e0 = float(rec[0, COL["time_s"]]), float(rec[0, COL["energy_j"]])
             self.ever = True
             self.abs_sum = self.abs_max = 0.0
@@ -114,7 +115,7 @@ class LapClock:
 
     def fail(self, code: Outcome, detail: str, now_s: float, energy_j: float) -> None:
         if self.judge is None:
-            self.judge = LapJudge(self.twin.track, self.limits, self.keep_trace)
+            self.judge = judge_for(self.twin.track, self.limits, self.keep_trace)
         t0 = self.start_s or 0.0
         self.judge.fail(code, detail, now_s - t0, energy_j - (self.e0 if self.start_s is not None else 0.0))
 
