@@ -182,7 +182,9 @@ def test_a_maze_solver_of_our_own_reaches_the_finish_spot(build):
     assert lap.distance_m > lap.track_length_m  # it explored before it found the way
     assert lap.max_cross_track_m < 0.1 and [p.button for p in report.presses] == ["B"]
     xy = lap.trace.records[-1, 1:3]
-    assert np.hypot(*(xy - three_pi("maze").track.finish_xy)) <= 0.06
+    from mjcf.maze import Maze
+
+    assert np.hypot(*(xy - Maze().finish_xy)) <= Maze().finish_radius_m
 
 
 def cli(*args):

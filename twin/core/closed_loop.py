@@ -69,13 +69,13 @@ def run_laps(
     """
     if not variants:
         return []
-    refuse_maze(twin.track, "the twin's controller")
     seeds = list(seed) if isinstance(seed, (list, tuple, range, np.ndarray)) else [seed] * len(variants)
     if len(seeds) != len(variants):
         raise TwinError(f"seeds: {len(seeds)} given for {len(variants)} laps")
     for s in seeds:
         check_seed(s)
     model = twin.model()
+    refuse_maze(twin.track, "the twin's controller")
     laps = [Variant.of(twin, v) for v in variants]
     core.install_callback()
     fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds,

@@ -97,9 +97,9 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
     check_seed(seed)
     lap = Variant.of(twin, {})
     params, sensor = lap.params, lap.sensor
-    refuse_maze(twin.track, "the twin's own firmware")
     elf = runnable_firmware(twin, elf_path)
     model = twin.model()
+    refuse_maze(twin.track, "the twin's own firmware")
     data = mujoco.MjData(model)
     judge = LapJudge(twin.track, limits, keep_trace)
     telemetry = Telemetry(on_line)
