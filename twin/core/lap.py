@@ -106,6 +106,17 @@ class LapResult:
         return out
 
 
+def earliest(events, n: int) -> tuple[int, tuple[Outcome, str] | None]:
+    """The first of ``n`` ticks at which one of ``events`` [(mask (n,), outcome, detail)] happens, and which: the
+    earliest event wins, ties go to the one listed first; (n, None) if none happens."""
+    end, why = n, None
+    for mask, code, detail in events:
+        hit = np.flatnonzero(mask)
+        if len(hit) and hit[0] < end:
+            end, why = int(hit[0]), (code, detail)
+    return end, why
+
+
 class LapJudge:
     """Follows one simulation's trace chunk by chunk and decides when and how its lap ends."""
 
@@ -153,11 +164,7 @@ class LapJudge:
             (u >= length, Outcome.COMPLETED, "lap completed"),
             (t > lim.timeout_s, Outcome.TIMEOUT, f"no lap after {lim.timeout_s:g} s"),
         ]
-        end, why = len(rec), None
-        for mask, code, detail in events:
-            hit = np.flatnonzero(mask)
-            if len(hit) and hit[0] < end:  # the earliest event wins; ties go to the one listed first
-                end, why = int(hit[0]), (code, detail)
+        end, why = earliest(events, len(rec))
         keep = slice(0, end + 1 if why else end)
         self._account(rec[keep], u[keep], offset[keep])
         prev = self.prev if end == 0 else (float(t[end - 1]), float(u[end - 1]), float(rec[end - 1, COL["energy_j"]]))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from mjcf.maze import Maze
-from twin.core.lap import COL, LapLimits, LapResult, LapTrace
+from twin.core.lap import COL, LapLimits, LapResult, LapTrace, earliest
 from twin.core.outcomes import Outcome
 from twin.errors import TwinError
 
@@ -45,11 +45,7 @@ class MazeJudge:
             (self.track.at_finish(xy) & finite, Outcome.COMPLETED, "finish reached"),
             (t > lim.timeout_s, Outcome.TIMEOUT, f"finish not reached after {lim.timeout_s:g} s"),
         ]
-        end, why = len(rec), None
-        for mask, code, detail in events:
-            hit = np.flatnonzero(mask)
-            if len(hit) and hit[0] < end:
-                end, why = int(hit[0]), (code, detail)
+        end, why = earliest(events, len(rec))
         keep = slice(0, end + 1 if why else end)
         if len(rec[keep]):
             self.n += len(rec[keep])

@@ -110,7 +110,7 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
         sim = place_robot(model, data, twin, lap, seed)
         mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
         steps = max(1, round(CHUNK_S / model.opt.timestep))
-        cal_min, cal_max = [], []
+        cal_min, cal_max, overruns_before = [], [], 0
         if why := turn_too_long(params, limits):
             judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         else:
@@ -127,11 +127,12 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
             mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
             mcu.zero_time()
             mcu.reset_stats()
+            overruns_before = int.from_bytes(mcu.peek("fw_overruns", 2), "little")  # the turn's ten-read ticks overrun
             telemetry.offset = 0.0
             mcu.buttons(BUTTON_B)
             _drive(mcu, data, sim, judge, telemetry, steps)
         status = mcu.status()
-        overruns = int.from_bytes(mcu.peek("fw_overruns", 2), "little")
+        overruns = (int.from_bytes(mcu.peek("fw_overruns", 2), "little") - overruns_before) % 65536
         dropped = int.from_bytes(mcu.peek("uart_dropped", 2), "little") if "uart_dropped" in elf.symbols else 0
     return judge.result(params.count, cal_min, cal_max, lap.values), _report(elf, params.dt_s, status, overruns, dropped,
                                                                            telemetry)

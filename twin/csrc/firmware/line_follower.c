@@ -33,8 +33,9 @@ void lf_calibrate_reset(lf_state *s, uint16_t timeout_us) {
 
 /* Pololu's calibration rule (libpololu-avr, PololuQTRSensors.cpp, calibrateOnOrOff): a call takes LF_CAL_READS
  * readings; per sensor, the calibrated maximum rises to the call's smallest reading and the calibrated minimum falls
- * to its largest, so one noise spike never widens the range. The firmware reads once per tick: a call is
- * LF_CAL_READS consecutive calibration ticks (a call cut short when the turn ends is dropped). */
+ * to its largest, so one noise spike never widens the range. Each calibration tick is one call: its callers take
+ * LF_CAL_READS - 1 readings before lf_step takes the last (the C callback at the tick's pose, the MCU's program one
+ * read after another); a call cut short by lf_reset is dropped. */
 void lf_calibrate_update(lf_state *s, const uint16_t *raw, int32_t count) {
   int32_t i;
   for (i = 0; i < count; i++) {

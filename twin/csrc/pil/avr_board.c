@@ -220,20 +220,19 @@ void lf_avr_board_status(const lf_avr *a, lf_board_status *out) {
   else memset(&out->note, 0, sizeof out->note);
 }
 
+/* Hand over at most cap of a ring's n events (each size bytes) and keep the rest, in order; returns how many. */
+int32_t pil_drain(void *ring, int32_t *n, size_t size, void *out, int32_t cap) {
+  int32_t k = *n < cap ? *n : cap;
+  memcpy(out, ring, (size_t)k * size);
+  memmove(ring, (char *)ring + (size_t)k * size, (size_t)(*n - k) * size);
+  *n -= k;
+  return k;
+}
+
 int32_t lf_avr_notes(lf_avr *a, lf_note *out, int32_t cap) {
-  lf_board *b = &a->board;
-  int32_t n = b->nnotes < cap ? b->nnotes : cap;
-  memcpy(out, b->notes, (size_t)n * sizeof *out);
-  memmove(b->notes, b->notes + n, (size_t)(b->nnotes - n) * sizeof *out);
-  b->nnotes -= n;
-  return n;
+  return pil_drain(a->board.notes, &a->board.nnotes, sizeof *out, out, cap);
 }
 
 int32_t lf_avr_leds(lf_avr *a, lf_led_event *out, int32_t cap) {
-  lf_board *b = &a->board;
-  int32_t n = b->nleds < cap ? b->nleds : cap;
-  memcpy(out, b->leds, (size_t)n * sizeof *out);
-  memmove(b->leds, b->leds + n, (size_t)(b->nleds - n) * sizeof *out);
-  b->nleds -= n;
-  return n;
+  return pil_drain(a->board.leds, &a->board.nleds, sizeof *out, out, cap);
 }

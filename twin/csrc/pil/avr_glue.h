@@ -17,6 +17,7 @@
 #ifndef LF_AVR_GLUE_H
 #define LF_AVR_GLUE_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include <mujoco/mujoco.h>
@@ -226,6 +227,7 @@ void pil_lcd_step(lf_avr *a);        /* a step ended: keep the screen if the pro
 void pil_connect_board(lf_avr *a);   /* buttons, LEDs, buzzer, ADC inputs, the unmodelled peripherals' registers */
 void pil_board_step(lf_avr *a, uint64_t from); /* the step since cycle from ended: LEDs shown, the physics trace */
 void pil_led_update(lf_avr *a);      /* a port D line may have changed */
+int32_t pil_drain(void *ring, int32_t *n, size_t size, void *out, int32_t cap); /* events to Python, in order */
 /* avr_trace.c */
 void pil_connect_uart(lf_avr *a);    /* keep the UART's bytes for Python */
 void pil_trace_ticks(lf_avr *a);     /* trace the ticks the twin's firmware finished since the last call */

@@ -167,10 +167,5 @@ void pil_lcd_step(lf_avr *a) {
 
 /* Hand Python the screens kept since the last call (at most cap). */
 int32_t lf_avr_lcd_frames(lf_avr *a, lf_lcd_frame *out, int32_t cap) {
-  lf_board *b = &a->board;
-  int32_t n = b->nframes < cap ? b->nframes : cap;
-  memcpy(out, b->frames, (size_t)n * sizeof *out);
-  memmove(b->frames, b->frames + n, (size_t)(b->nframes - n) * sizeof *out);
-  b->nframes -= n;
-  return n;
+  return pil_drain(a->board.frames, &a->board.nframes, sizeof *out, out, cap);
 }
