@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from mjcf.maze import Maze
-from twin.core.lap import COL, LapLimits, LapResult, LapTrace, earliest
+from twin.core.lap import COL, LapLimits, LapResult, earliest, judged
 from twin.core.outcomes import Outcome
 from twin.errors import TwinError
 
@@ -62,21 +62,7 @@ class MazeJudge:
             self.outcome = (code, detail, t, self.driven, energy)
 
     def result(self, count: int, cal_min, cal_max, parameters: dict) -> LapResult:
-        if self.outcome is None:
-            raise TwinError("maze judge: the run has not ended")
-        code, detail, t_end, driven, energy = self.outcome
-        trace = None
-        if self.keep_trace and self.chunks:
-            rec, u, off = (np.concatenate(x) for x in zip(*self.chunks))
-            trace = LapTrace(rec, u, off, count)
-        completed = code == Outcome.COMPLETED
-        return LapResult(
-            completed=completed, failure=None if completed else code.value, detail=detail,
-            lap_time_s=t_end if completed else None, simulated_s=t_end, distance_m=driven,
-            track_length_m=self.track.solution_m, max_cross_track_m=self.abs_max,
-            mean_cross_track_m=self.abs_sum / self.n if self.n else 0.0, energy_j=energy,
-            calibration_min_us=tuple(int(v) for v in cal_min), calibration_max_us=tuple(int(v) for v in cal_max),
-            parameters=dict(parameters), trace=trace)
+        return judged(self, self.track.solution_m, count, cal_min, cal_max, dict(parameters))
 
 
 def judge_for(track, limits: LapLimits, keep_trace: bool = True):
