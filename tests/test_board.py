@@ -165,6 +165,12 @@ def test_garbage_on_the_lcd_lines_is_a_result_in_time(build):
     assert all(len(text.split("\n")) == 2 for _, text in report.lcd)
 
 
+def test_unmodelled_peripherals_are_named_and_the_uart_lights_the_red_led(build):
+    lap, report = run(build("peripherals"), timeout_s=0.5)
+    assert [line.split(":")[0] for line in report.unmodelled] == ["SPI", "ADC0-5", "UART receive"]
+    assert report.leds[-1][1:] == (True, False) and not lap.completed  # TX idles high on the red LED's line
+
+
 def test_a_register_level_follower_laps_the_oval_deterministically(build):
     path = build("follower")
     lap, report = run(path, timeout_s=30.0, keep_trace=True)

@@ -41,6 +41,7 @@ from twin.pil.mcu import Mcu, glue
 from twin.pil.program import Program, load_program
 
 TRACE_PERIOD_S = 0.001  # the physics trace's period: every step at the default 1 ms
+NO_WATCHDOG_S = 1e6  # a program may wait as long as it likes: the run's time limits end it
 
 
 def check_board(twin: DigitalTwin) -> None:
@@ -147,7 +148,7 @@ def run_board_lap(twin: DigitalTwin, program: Program, seed: int = 0, limits: La
     with Mcu(program) as mcu:
         mcu.board(True, battery, TRIMMER_V, max(1, round(TRACE_PERIOD_S / model.opt.timestep)))
         sim = place_robot(model, data, twin, lap, seed)
-        mcu.attach(model, data, sim, math.inf)
+        mcu.attach(model, data, sim, NO_WATCHDOG_S)  # the watchdog is the twin firmware's alone
         mcu.zero_time()
         consumed = 0
         while not clock.done:
