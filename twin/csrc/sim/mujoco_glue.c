@@ -216,14 +216,7 @@ void lf_control_callback(const mjModel *m, mjData *d) {
   next_tick = s->phase_start_time + (double)s->ticks * s->firmware.dt_s;
   if (d->time < next_tick - 0.5 * s->timestep) return;
   mode = s->fw.mode;
-  if (s->fw.mode == LF_CALIBRATE) { /* a calibration call takes LF_CAL_READS readings, at this tick's pose */
-    int32_t k;
-    for (k = 1; k < LF_CAL_READS; k++) {
-      read_sensors(m, d, s, &height0);
-      lf_calibrate_update(&s->fw, s->raw, s->nsensor);
-    }
-  }
-  read_sensors(m, d, s, &height0); /* lf_step calibrates with the last of them */
+  read_sensors(m, d, s, &height0);
   lf_step(&s->fw, &s->firmware, s->raw);
   d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
