@@ -102,6 +102,7 @@ def test_lcd_codes_read_as_the_hd44780_rom_and_bars():
     assert plain("4794mV  \nPress B ") == "4794mV Press B"
 
 
+@pytest.mark.quick
 def test_the_operator_waits_for_polling_with_the_motors_still_then_presses_what_the_lcd_asks():
     op = Operator(patience_s=0.5, hold_s=0.2)
     never = -math.inf

@@ -52,8 +52,6 @@ class Program:
 
 def load_program(path: str) -> Program:
     """The program in ``path`` (ELF or Intel HEX), checked for the ATmega328P; a one-line TwinError otherwise."""
-    if os.path.isdir(path):
-        raise TwinError(f"{path}: is a folder; {TAKES}")
     if not os.path.lexists(path):
         raise TwinError(f"{path}: no such firmware file; {TAKES}")
     input_file(path, "firmware file")  # a FIFO or a device: the one message every input flag gives
