@@ -122,6 +122,17 @@ def test_batched_laps_equal_laps_run_one_by_one(twin):
 
 
 @pytest.mark.quick
+def test_a_lap_does_not_depend_on_the_turns_of_the_laps_beside_it(twin):
+    """Laps whose calibration turns differ in length (physics step, sweep) share a batch: each turns exactly as long
+    as it would alone (extra idle ticks would draw sensor noise and shift its lap)."""
+    variants = [{"motion.timestep": 0.0025}, {"control.cal_sweep": 2.0}, {"motion.timestep": 0.0005}]
+    together = run_laps(twin, variants, seed=3, keep_traces=False, reuse_calibration=False)
+    for v, batched in zip(variants, together):
+        alone = run_laps(twin, [v], seed=3, keep_traces=False, reuse_calibration=False)[0]
+        assert alone.summary() == batched.summary(), v
+
+
+@pytest.mark.quick
 def test_variants_never_write_to_the_twin():
     """A variant is derived from a mapping of values: the twin's values and model fields are never touched,
     not even for the duration of the batch (another thread may read them)."""

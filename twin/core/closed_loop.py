@@ -223,16 +223,20 @@ def _calibrate(fleet: Fleet, keys: list[tuple], turns: dict) -> dict[tuple, tupl
     fleet.reset()
     if not todo:
         return {}
-    ids = np.array(sorted(todo.values()))
-    nstep = max((calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i] for i in ids)
-    fleet.step(ids, nstep)
+    # each turn steps exactly its own length: a longer one in the batch must not give it extra idle ticks, whose
+    # sensor reads would draw noise and make its lap depend on the laps it shares a batch with
+    groups: dict[int, list[int]] = {}
+    for i in sorted(todo.values()):
+        groups.setdefault((calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i], []).append(i)
+    for nstep, ids in sorted(groups.items()):
+        fleet.step(np.array(ids), nstep)
     failed = {}
     for k, i in todo.items():
         s = fleet.sims[i]
         if fleet.judges[i].done:
             failed[k] = fleet.judges[i].outcome  # not kept: every lap with this turn fails alike
         elif s.fw.mode != IDLE:
-            raise TwinError(f"lap {i}: calibration did not finish in {nstep} steps")
+            raise TwinError(f"lap {i}: calibration did not finish in {(calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i]} steps")
         else:
             turns[k] = (tuple(s.fw.cal_min[: s.nsensor]), tuple(s.fw.cal_max[: s.nsensor]), int(s.rng))
     fleet.reset()  # the turn moved them: back to the start
