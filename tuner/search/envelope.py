@@ -72,6 +72,13 @@ class Risk:
         k = max(1, math.ceil(self.alpha * c.shape[1]))
         return np.sort(c, axis=1)[:, -k:].mean(axis=1)
 
+    def lap_bound(self, bound: float, n: int) -> float:
+        """The lap cost above which a point of ``n`` laps costs more than ``bound``, whatever its other laps cost
+        (each at least 0): the worst lap counts whole, the mean 1/n of it, cvar 1/⌈α·n⌉."""
+        if self.kind == "worst":
+            return bound
+        return bound * (n if self.kind == "mean" else max(1, math.ceil(self.alpha * n)))
+
     def __str__(self) -> str:
         return f"cvar:{self.alpha:g}" if self.kind == "cvar" else self.kind
 

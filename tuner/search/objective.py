@@ -17,13 +17,15 @@ every point (common random numbers), so differences between points come from the
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Callable
 
 import numpy as np
 
-from twin.core.closed_loop import run_laps
+from twin.core.closed_loop import Progress, run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits, LapResult
+from twin.core.outcomes import Outcome
 from tuner.search.envelope import Envelope, Risk, label
 from tuner.search.space import SearchSpace
 from twin.errors import TwinError
@@ -33,10 +35,33 @@ SLOW_SPEED = 0.2  # [m/s] the distance left is charged as if driven at this spee
 
 
 def lap_cost(r: LapResult) -> float:
-    """F for one lap (see the module docstring)."""
+    """F for one lap (see the module docstring); for a lap stopped undecided, a lower bound: its simulated time."""
     if r.completed:
         return float(r.lap_time_s)
+    if r.failure == Outcome.STOPPED.value:
+        return float(r.simulated_s)
     return float(r.simulated_s + PENALTY_S + max(0.0, r.track_length_m - r.distance_m) / SLOW_SPEED)
+
+
+class _Cut:
+    """Between chunks: stops the laps of every point whose cost is certainly above the bound, or above the cost of a
+    point of the batch that has finished (each lap's cost at least its lower bound: :func:`lap_cost` of its result,
+    or its simulated time while it runs)."""
+
+    def __init__(self, risk: Risk, per_point: int, points: int, bound: float):
+        self.risk, self.per_point, self.points, self.bound = risk, per_point, points, bound
+
+    def __call__(self, progress: list[Progress]) -> list[int]:
+        lower = np.array([lap_cost(p.result) if p.result else p.time_s for p in progress]).reshape(self.points, -1)
+        ended = np.array([p.result is not None for p in progress]).reshape(self.points, -1)
+        stopped = np.array([bool(p.result) and p.result.failure == Outcome.STOPPED.value for p in progress])
+        exact = ended.all(axis=1) & ~stopped.reshape(self.points, -1).any(axis=1)
+        costs = self.risk(lower)
+        bound = min([self.bound] + list(costs[exact]))
+        out = []
+        for k in np.flatnonzero((costs > bound) & ~ended.all(axis=1)):
+            out += [k * self.per_point + j for j in np.flatnonzero(~ended[k])]
+        return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +71,7 @@ class Evaluation:
     x: np.ndarray
     cost: float
     laps: tuple[LapResult, ...]
+    bounded: bool = False  # some laps were stopped: cost is a lower bound (LapObjective.below)
 
     @property
     def lap(self) -> LapResult:
@@ -64,11 +90,13 @@ class LapObjective:
       nthread: batch threads, 0 for all cores.
       envelope: scenarios × seeds each point is judged on (default: the twin as it is, with ``seed``).
       risk: how a point's lap costs add up (default: their mean).
+      stop_early: laps stop the tick they are decided, and :meth:`below` stops those that could no longer matter;
+        False runs every lap to the end of its chunk (the answers are the same).
     """
 
     def __init__(self, twin: DigitalTwin, space: SearchSpace, seed: int = 0, limits: LapLimits = LapLimits(),
-                 nthread: int = 0, envelope: Envelope | None = None, risk: Risk = Risk("mean")):
-        self.twin, self.space, self.limits, self.nthread = twin, space, limits, nthread
+                 nthread: int = 0, envelope: Envelope | None = None, risk: Risk = Risk("mean"), stop_early: bool = True):
+        self.twin, self.space, self.limits, self.nthread, self.stop_early = twin, space, limits, nthread, stop_early
         self.envelope = envelope if envelope is not None else Envelope.of({}, [seed])
         self.risk = risk
         for address, _ in self.envelope.axes:
@@ -83,6 +111,14 @@ class LapObjective:
     def __call__(self, z: np.ndarray) -> np.ndarray:
         """F at points z (m, n) of the unit box: one batch of m × scenarios × seeds laps. Returns (m,) costs in [s].
         A point evaluated before is not simulated again: its laps would be bit-identical."""
+        return self.below(z, math.inf)
+
+    def below(self, z: np.ndarray, bound: float) -> np.ndarray:
+        """F at points z (m, n), exact for every point that costs at most ``bound`` [s] and for the cheapest point;
+        a point that cannot cost less than ``bound``, or than a point of the same batch that has finished, may come
+        back as a lower bound above it, its laps stopped as soon as that is certain (a lap's cost is at least its
+        simulated time, and the risk measure never falls when a lap's cost rises). So the cheapest point, and
+        whether it beats ``bound``, are those of the exact costs: what a line search asks."""
         z = np.atleast_2d(z)
         known = [self.at(zi) for zi in z]
         if all(e is not None for e in known):
@@ -90,19 +126,27 @@ class LapObjective:
         if any(e is not None for e in known):
             fresh = [i for i, e in enumerate(known) if e is None]
             costs = np.array([np.nan if e is None else e.cost for e in known])
-            costs[fresh] = self(z[fresh])
+            if math.isfinite(bound):  # a known point cheaper than the bound bounds the others too
+                bound = min([bound] + [e.cost for e in known if e is not None])
+            costs[fresh] = self.below(z[fresh], bound)
             return costs
         xs = [self.space.from_unit(zi) for zi in z]
         scenarios, seeds = self.envelope.scenarios, self.envelope.seeds
-        variants = [{**self.space.assignments(x), **sc} for x in xs for sc in scenarios for _ in seeds]
-        results = run_laps(self.twin, variants, seed=[s for _ in xs for _ in scenarios for s in seeds],
-                           limits=self.limits, nthread=self.nthread, keep_traces=False)
-        self.laps += len(results)
         per_point = len(scenarios) * len(seeds)
+        variants = [{**self.space.assignments(x), **sc} for x in xs for sc in scenarios for _ in seeds]
+        bounded = self.stop_early and math.isfinite(bound)
+        results = run_laps(self.twin, variants, seed=[s for _ in xs for _ in scenarios for s in seeds],
+                           limits=self.limits, nthread=self.nthread, keep_traces=False, stop_decided=self.stop_early,
+                           deadline_s=[self.risk.lap_bound(bound, per_point)] * len(variants) if bounded else None,
+                           cut=_Cut(self.risk, per_point, len(xs), bound) if bounded else None)
+        self.laps += len(results)
         lap_costs = np.array([lap_cost(r) for r in results]).reshape(len(xs), per_point)
         costs = self.risk(lap_costs)
         for i, (zi, x, c) in enumerate(zip(z, xs, costs)):
-            e = Evaluation(x, float(c), tuple(results[i * per_point:(i + 1) * per_point]))
+            laps = tuple(results[i * per_point:(i + 1) * per_point])
+            e = Evaluation(x, float(c), laps, any(r.failure == Outcome.STOPPED.value for r in laps))
+            if e.bounded:
+                continue  # a lower bound: neither the best nor a point to reuse
             self._seen[np.asarray(zi, dtype=float).tobytes()] = e
             if self.first is None:
                 self.first = e

@@ -22,6 +22,11 @@ void lf_set_ray(void *fn) { ray_fn = (lf_ray_fn)fn; }
 
 int32_t lf_has_ray(void) { return ray_fn != 0; }
 
+/* The warning whose counter the callback raises to stop a decided lap: mujoco.batch.Batch.rollout (mjb_rollout) stops
+ * a simulation whose warning counters rise, the one way to end one simulation inside a batch call. MuJoCo raises this
+ * one only for a non-finite control, which the firmware never writes (its duties are finite and clamped). */
+#define LF_STOP_WARNING mjWARN_BADCTRL
+
 #define SIM_WORDS ((int64_t)((sizeof(lf_sim) + sizeof(mjtNum) - 1) / sizeof(mjtNum)))
 #define RECORD_WORDS ((int64_t)(sizeof(lf_record) / sizeof(mjtNum)))
 
@@ -233,6 +238,13 @@ void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
   s->ticks++;
   lf_write_record(m, d, s, mode, height0);
+  if (s->judge_on && !s->stop_raised) {
+    const lf_record *r = (const lf_record *)(s + 1) + (s->records_written - 1) % s->record_capacity;
+    if (lf_judge_feed(&s->judge, r) != LF_LAP_RUNNING || r->time_s > s->deadline_s) {
+      s->stop_raised = 1; /* decided, or past its deadline: end the rollout after this step (mj_step ignores it) */
+      d->warning[LF_STOP_WARNING].number++;
+    }
+  }
 }
 
 void lf_control_callback(const mjModel *m, mjData *d) {
