@@ -84,8 +84,10 @@ double lf_motor_power(const mjModel *m, const mjData *d, int32_t a) {
   return fmax(0.0, d->ctrl[a] * current);
 }
 
-/* Sensor i's raw reading now (s->raw[i]), drawing its noise from s->rng; returns its height above the floor [m]. */
-double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
+/* Sensor i's raw reading now (s->raw[i]), drawing its noise from s->rng; returns its height above the floor [m].
+ * tan_half: tan(s->sensor.half_angle_rad), the footprint's growth with height (lf_footprint_radius), computed once a
+ * tick for all sensors. */
+static double read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i, double tan_half) {
   /* the world only (groups 0-1: the floor, obstacles); the robot's own geoms (2: visual, 3: collision) never block */
   static const mjtByte groups[mjNGROUP] = {1, 1, 0, 0, 0, 0};
   lf_texture tex;
@@ -108,17 +110,22 @@ double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
   height = ray_fn(m, d, origin, dir, groups, 1, s->sensor_body, &geom, normal);
   if (height >= 0.0)
     reflectance = lf_footprint_reflectance(&tex, origin[0] + height * dir[0], origin[1] + height * dir[1],
-                                           lf_footprint_radius(&s->sensor, height));
+                                           s->sensor.aperture_m + height * tan_half); /* lf_footprint_radius */
   else
     height = 0.0; /* nothing under the sensor: no light comes back */
   s->raw[i] = lf_raw_reading(&s->sensor, reflectance, height, lf_noise(&s->rng));
   return height;
 }
 
+double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
+  return read_sensor(m, d, s, i, tan(s->sensor.half_angle_rad));
+}
+
 void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
+  const double tan_half = tan(s->sensor.half_angle_rad);
   int32_t i;
   for (i = 0; i < s->nsensor; i++) {
-    double height = lf_read_sensor(m, d, s, i);
+    double height = read_sensor(m, d, s, i, tan_half);
     if (i == 0) *height0 = height;
   }
 }
