@@ -13,6 +13,7 @@ from twin.cli.output import Output
 from twin.link.emulator import (NoReader, accept, check_link_path, drain_pty, firmware_lap_records, lap_records, open_pty,
                            pty_writer, release_link, serve_tcp, stream)
 from twin.errors import TwinError
+from twin.pil.board import load_script, runnable_program
 from twin.pil.lap import runnable_firmware
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
@@ -33,7 +34,7 @@ def add_parser(sub) -> None:
                    help="serve on 127.0.0.1:PORT instead of a pty (0: any free port)")
     p.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty, stable across restarts")
     p.add_argument("--echo", metavar="FILE", help="append every line sent to FILE")
-    o.add_firmware(p, "the robot (with avr or an ELF, the lines are the MCU's UART output)")
+    o.add_firmware(p, "the robot (with avr or a program file, the lines are the MCU's UART output)")
     p.add_argument("--idle-timeout", type=o.number(0.1, 86400.0), default=60.0, metavar="WALL_S",
                    help="stop when nobody has read the stream for this long (no TCP client, a pty nobody reads)")
     o.add_json(p)
@@ -73,15 +74,20 @@ def run(args: argparse.Namespace) -> int:
         check_link_path(args.link)
     echo_file = _echo_file(args.echo)
     try:
-        twin = o.twin_from_args(args)
+        program, script = o.program_from_args(args)
+        twin = o.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
         args.gains_warning = o.gains_warning(args, twin)
         twin.model()
         if args.firmware == "c":
             lines = lap_records(twin, args.seed, args.every, args.laps)
         else:
             elf = None if args.firmware == "avr" else args.firmware
-            runnable_firmware(twin, elf)  # a bad ELF or a missing simavr fails now, not when the first reader comes
-            lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps)
+            if elf:  # a bad program or a missing simavr fails now, not when the first reader comes
+                runnable_program(twin, elf)
+            else:
+                runnable_firmware(twin, None)
+            operator = (lambda: load_script(args.operator)) if script else None
+            lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps, operator)
         echo = _echo_writer(echo_file) if echo_file else None
         if args.tcp is not None:
             _serve_tcp(args, lines, echo, out)

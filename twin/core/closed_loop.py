@@ -41,6 +41,7 @@ from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
 from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.maze import refuse_maze
 from twin.core.outcomes import Outcome
 from twin.core.variant import Variant, field_key
 
@@ -97,6 +98,7 @@ def run_laps(
     for s in seeds:
         check_seed(s)
     model = twin.model()
+    refuse_maze(twin.track, "the twin's controller")
     laps = [Variant.of(twin, v) for v in variants]
     core.install_callback()
     fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds,

@@ -1,4 +1,4 @@
-/* What the glue reads back from the MCU. A tick the firmware finished (its fw_ticks_done counter moved) is traced into
+/* What the glue reads back from the MCU. A tick the twin's own firmware finished (its fw_ticks_done counter moved) is traced into
  * the head's ring from the firmware's own RAM (fw_state, fw_raw_us, fw_tick_mode, found by their ELF symbols), with
  * the CPU cycles spent awake since the previous tick. The UART's bytes are kept for Python to drain: they are the
  * robot's telemetry. */
@@ -72,6 +72,7 @@ void lf_avr_status_of(const lf_avr *a, lf_avr_status *status) {
   *status = a->status;
   status->cycle = a->avr->cycle;
   status->ticks = a->ticks_seen;
+  status->awake = a->busy;
 }
 
 static void on_uart(struct avr_irq_t *irq, uint32_t value, void *param) {
