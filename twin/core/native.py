@@ -27,7 +27,7 @@ from twin.core.outcomes import REFUSALS, c_names
 from twin.errors import TwinError
 
 MAGIC = 1279676025.0
-LAYOUT_VERSION = 6
+LAYOUT_VERSION = 7
 # the model sizes a head is written for, in the order of model_signature() in mujoco_glue.c
 SIGNATURE = ("nbody", "nsite", "ntex", "ntexdata", "nu", "na", "nv", "nnumericdata")
 
@@ -52,6 +52,7 @@ class FwState(ctypes.Structure):
         ("position", c_int32), ("last_position", c_int32), ("line_seen", c_int32), ("mode", c_int32),
         ("tick", c_uint32), ("e", c_double), ("e_prev", c_double), ("integral", c_double), ("v", c_double),
         ("omega", c_double), ("duty_left", c_double), ("duty_right", c_double),
+        ("call_min", c_uint16 * MAX_SENSORS), ("call_max", c_uint16 * MAX_SENSORS), ("call_reads", c_int32),
     ]
 
 

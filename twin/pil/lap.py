@@ -127,7 +127,7 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
             mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
             mcu.zero_time()
             mcu.reset_stats()
-            overruns_before = int.from_bytes(mcu.peek("fw_overruns", 2), "little")  # the turn's are not the lap's
+            overruns_before = int.from_bytes(mcu.peek("fw_overruns", 2), "little")  # the turn's ten-read ticks overrun
             telemetry.offset = 0.0
             mcu.buttons(BUTTON_B)
             _drive(mcu, data, sim, judge, telemetry, steps)

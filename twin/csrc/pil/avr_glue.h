@@ -63,6 +63,8 @@ typedef struct {
   int32_t position, last_position, line_seen, mode;
   uint32_t tick;
   float e, e_prev, integral, v, omega, duty_left, duty_right;
+  uint16_t call_min[LF_MAX_SENSORS], call_max[LF_MAX_SENSORS];
+  int32_t call_reads;
 } avr_lf_state;
 #pragma pack(pop)
 

@@ -35,7 +35,8 @@ static const lf_field fields[] = {
   AVR_FIELD(lf_state, position), AVR_FIELD(lf_state, last_position), AVR_FIELD(lf_state, line_seen),
   AVR_FIELD(lf_state, mode), AVR_FIELD(lf_state, tick), AVR_FIELD(lf_state, e), AVR_FIELD(lf_state, e_prev),
   AVR_FIELD(lf_state, integral), AVR_FIELD(lf_state, v), AVR_FIELD(lf_state, omega), AVR_FIELD(lf_state, duty_left),
-  AVR_FIELD(lf_state, duty_right),
+  AVR_FIELD(lf_state, duty_right), AVR_FIELD(lf_state, call_min), AVR_FIELD(lf_state, call_max),
+  AVR_FIELD(lf_state, call_reads),
 
   WHOLE("avr.lf_config", avr_lf_config),
   AVR_FIELD(lf_config, magic), AVR_FIELD(lf_config, size), AVR_FIELD(lf_config, params.count),

@@ -23,6 +23,9 @@ int32_t lf_avr_state(const lf_avr *a, lf_state *out) {
   out->mode = st.mode, out->tick = st.tick;
   out->e = st.e, out->e_prev = st.e_prev, out->integral = st.integral, out->v = st.v, out->omega = st.omega;
   out->duty_left = st.duty_left, out->duty_right = st.duty_right;
+  memcpy(out->call_min, st.call_min, sizeof st.call_min);
+  memcpy(out->call_max, st.call_max, sizeof st.call_max);
+  out->call_reads = st.call_reads;
   return 0;
 }
 

@@ -48,6 +48,7 @@ static const lf_field fields[] = {
   LF_FIELD(lf_state, last_position), LF_FIELD(lf_state, line_seen), LF_FIELD(lf_state, mode), LF_FIELD(lf_state, tick),
   LF_FIELD(lf_state, e), LF_FIELD(lf_state, e_prev), LF_FIELD(lf_state, integral), LF_FIELD(lf_state, v),
   LF_FIELD(lf_state, omega), LF_FIELD(lf_state, duty_left), LF_FIELD(lf_state, duty_right),
+  LF_FIELD(lf_state, call_min), LF_FIELD(lf_state, call_max), LF_FIELD(lf_state, call_reads),
 
   LF_FIELD(lf_sensor_model, aperture_m), LF_FIELD(lf_sensor_model, half_angle_rad),
   LF_FIELD(lf_sensor_model, falloff_height_m), LF_FIELD(lf_sensor_model, t_unit_us),

@@ -239,7 +239,14 @@ void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
   lf_integrate_energy(m, d, s);
   if (!lf_tick_due(d, s)) return;
   mode = s->fw.mode;
-  lf_read_sensors(m, d, s, &height0);
+  if (s->fw.mode == LF_CALIBRATE) { /* a calibration call takes LF_CAL_READS readings, at this tick's pose */
+    int32_t k;
+    for (k = 1; k < LF_CAL_READS; k++) {
+      lf_read_sensors(m, d, s, &height0);
+      lf_calibrate_update(&s->fw, s->raw, s->nsensor);
+    }
+  }
+  lf_read_sensors(m, d, s, &height0); /* lf_step calibrates with the last of them */
   lf_step(&s->fw, &s->firmware, s->raw);
   d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
