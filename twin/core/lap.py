@@ -14,7 +14,9 @@ nearest the centre of rotation (computed by the C loop at every tick, ``lf_locat
   than ``calibration_timeout_s`` of simulated time (then it is not simulated at all);
 * ``refused``: the C loop found that a simulation's userdata did not fit the model it was stepped with
   (a program error, reported as a result rather than a crash);
-* ``firmware_stalled``: the robot's binary in the loop stopped (:mod:`twin.pil.lap`).
+* ``firmware_stalled``: the robot's binary in the loop stopped (:mod:`twin.pil.lap`);
+* ``stopped``: undecided, ended early because its caller no longer needed it (``run_laps``' ``deadline_s`` or ``cut``):
+  its ``simulated_s`` is how far it got, a lower bound of when it would have ended.
 
 A failed lap is a result, not an exception. The codes are :class:`twin.core.outcomes.Outcome`.
 """
