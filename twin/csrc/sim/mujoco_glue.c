@@ -87,7 +87,10 @@ double lf_motor_power(const mjModel *m, const mjData *d, int32_t a) {
 /* Sensor i's raw reading now (s->raw[i]), drawing its noise from s->rng; returns its height above the floor [m].
  * tan_half: tan(s->sensor.half_angle_rad), the footprint's growth with height (lf_footprint_radius), computed once a
  * tick for all sensors. */
-static double read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i, double tan_half) {
+/* What sensor i sees at this pose (the light path only, no noise): its reflectance and its height [m] above what the
+   ray hits (0 and 0 when nothing is under it). */
+static void sense(const mjModel *m, const mjData *d, const lf_sim *s, int32_t i, double tan_half, double *reflectance,
+                  double *height) {
   /* the world only (groups 0-1: the floor, obstacles); the robot's own geoms (2: visual, 3: collision) never block */
   static const mjtByte groups[mjNGROUP] = {1, 1, 0, 0, 0, 0};
   lf_texture tex;
@@ -96,7 +99,6 @@ static double read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t 
   const mjtNum *xmat = d->site_xmat + 9 * s->sensor_site[i];
   mjtNum dir[3], normal[3];
   int geom = -1;
-  double reflectance = 0.0, height;
   tex.data = m->tex_data + m->tex_adr[t];
   tex.width = m->tex_width[t];
   tex.height = m->tex_height[t];
@@ -107,27 +109,39 @@ static double read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t 
   dir[0] = xmat[2];
   dir[1] = xmat[5];
   dir[2] = xmat[8];
-  height = ray_fn(m, d, origin, dir, groups, 1, s->sensor_body, &geom, normal);
-  if (height >= 0.0)
-    reflectance = lf_footprint_reflectance(&tex, origin[0] + height * dir[0], origin[1] + height * dir[1],
-                                           s->sensor.aperture_m + height * tan_half); /* lf_footprint_radius */
+  *reflectance = 0.0;
+  *height = ray_fn(m, d, origin, dir, groups, 1, s->sensor_body, &geom, normal);
+  if (*height >= 0.0)
+    *reflectance = lf_footprint_reflectance(&tex, origin[0] + *height * dir[0], origin[1] + *height * dir[1],
+                                            s->sensor.aperture_m + *height * tan_half); /* lf_footprint_radius */
   else
-    height = 0.0; /* nothing under the sensor: no light comes back */
+    *height = 0.0; /* nothing under the sensor: no light comes back */
+}
+
+double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
+  double reflectance, height;
+  sense(m, d, s, i, tan(s->sensor.half_angle_rad), &reflectance, &height);
   s->raw[i] = lf_raw_reading(&s->sensor, reflectance, height, lf_noise(&s->rng));
   return height;
 }
 
-double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
-  return read_sensor(m, d, s, i, tan(s->sensor.half_angle_rad));
+/* `reads` readings of every sensor at this pose into s->raw, the calibration taking all but the last (Pololu's
+   calibrate reads ten times per call); the light path is traced once, each reading draws its own noise in the
+   order one read after another would. Returns sensor 0's height [m]. */
+static double read_sensors(const mjModel *m, const mjData *d, lf_sim *s, int32_t reads) {
+  const double tan_half = tan(s->sensor.half_angle_rad);
+  double reflectance[LF_MAX_SENSORS], height[LF_MAX_SENSORS];
+  int32_t i, k;
+  for (i = 0; i < s->nsensor; i++) sense(m, d, s, i, tan_half, reflectance + i, height + i);
+  for (k = 0; k < reads; k++) {
+    if (k > 0) lf_calibrate_update(&s->fw, s->raw, s->nsensor);
+    for (i = 0; i < s->nsensor; i++) s->raw[i] = lf_raw_reading(&s->sensor, reflectance[i], height[i], lf_noise(&s->rng));
+  }
+  return height[0];
 }
 
 void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
-  const double tan_half = tan(s->sensor.half_angle_rad);
-  int32_t i;
-  for (i = 0; i < s->nsensor; i++) {
-    double height = read_sensor(m, d, s, i, tan_half);
-    if (i == 0) *height0 = height;
-  }
+  *height0 = read_sensors(m, d, s, 1);
 }
 
 /* Squared distance from (x, y) to segment i (vertex i to i+1, closing the loop); t: where along it [0, 1]. */
@@ -234,19 +248,13 @@ int32_t lf_ready(const mjModel *m, lf_sim *s) {
 }
 
 void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
-  double height0 = 0.0, mode;
+  double height0, mode;
   if (!lf_ready(m, s)) return;
   lf_integrate_energy(m, d, s);
   if (!lf_tick_due(d, s)) return;
   mode = s->fw.mode;
-  if (s->fw.mode == LF_CALIBRATE) { /* a calibration call takes LF_CAL_READS readings, at this tick's pose */
-    int32_t k;
-    for (k = 1; k < LF_CAL_READS; k++) {
-      lf_read_sensors(m, d, s, &height0);
-      lf_calibrate_update(&s->fw, s->raw, s->nsensor);
-    }
-  }
-  lf_read_sensors(m, d, s, &height0); /* lf_step calibrates with the last of them */
+  /* a calibration call takes LF_CAL_READS readings at this tick's pose; lf_step calibrates with the last of them */
+  height0 = read_sensors(m, d, s, s->fw.mode == LF_CALIBRATE ? LF_CAL_READS : 1);
   lf_step(&s->fw, &s->firmware, s->raw);
   d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
