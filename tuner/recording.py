@@ -115,10 +115,12 @@ class LiveRecording:
                 rrb.TimeSeriesView(name="lap time [s]", origin="/live/lap_time"),
                 rrb.TimeSeriesView(name="discrepancy, robot vs twin [-]", origin="/live/discrepancy"),
                 rrb.TimeSeriesView(name=f"{address} [{unit}]", origin=f"/live/{address}"),
+                rrb.TimeSeriesView(name="gains in force", origin="/live/gains"),
             ),
             rrb.Vertical(
                 rrb.TimeSeriesView(name="left wheel speed [rad/s]", origin="/live/wheel_left"),
                 rrb.TimeSeriesView(name="line position (readLine) [-]", origin="/live/line_position"),
+                rrb.TextLogView(name="what the twin did (--act)", origin="/live/actions"),
             ),
         ), collapse_panels=True)
         self._context = recording(save, view, blueprint, app_id=f"{twin_recording.APP_ID}-live")
@@ -135,6 +137,8 @@ class LiveRecording:
         if e["discrepancy"] is not None:
             rec.log("live/discrepancy", rr.Scalars(e["discrepancy"]))
         rec.log(f"live/{self.address}", rr.Scalars(e[self.address]))
+        for address, value in (e.get("gains") or {}).items():
+            rec.log(f"live/gains/{address.removeprefix('control.')}", rr.Scalars(value))
         lap, twin_trace = e["lap_record"], e["twin_lap"].trace
         series = [("robot", lap.t, lap.wl, lap.pos)]
         if twin_trace is not None:
@@ -145,6 +149,14 @@ class LiveRecording:
                 rec.send_columns(f"live/wheel_left/{who}", indexes=index, columns=rr.Scalars.columns(scalars=wl))
                 rec.send_columns(f"live/line_position/{who}", indexes=index, columns=rr.Scalars.columns(scalars=pos))
         twin_recording.flush(rec)  # to the viewer, and to the file lap by lap
+
+    def action(self, a: dict) -> None:
+        """One action of ``live --act`` (what, which command, the outcome), on the lap it was taken."""
+        self.rec.set_time("lap", sequence=a.get("lap", 0))
+        seq = f" #{a['seq']}" if a.get("seq") is not None else ""
+        level = "WARN" if a["kind"] in ("nak", "silent", "rollback", "hold") else "INFO"
+        self.rec.log("live/actions", rr.TextLog(f"{a['kind']}{seq}: {a.get('outcome', '')}", level=level))
+        twin_recording.flush(self.rec)
 
     def close(self, error: BaseException | None = None) -> None:
         """Finish the recording (renamed into place); after an error the partial file is discarded."""

@@ -1,0 +1,125 @@
+"""Re-tuning the gains for the aligned twin, between laps (the learning model during operation, paper §5).
+
+The gains must keep finishing as the robot goes on changing, so they are judged over an envelope: the aligned
+value of the re-aligned parameter and a value further along its change (``low``: the aligned value less a margin,
+or where its trend will be a few laps on), each with a few noise seeds, by the worst lap
+(:data:`tuner.search.envelope.ROBUST_RISK`, as the ``--robust`` preset). Descent starts from the gains in force
+(warm start: a few iterations suffice when the robot changed a little), inside the tuner's bounds for this robot
+(:func:`tuner.search.space.robot_bounds`); when the gains in force fail there, from the fastest of them slowed
+down (v_max scaled by :data:`SLOWER`, one batch) that finishes every lap, and failing that from the best of a
+small grid (:func:`tuner.search.start.rescue_start`). A lap slower than ``timeout_s`` (twice the robot's lap,
+say) counts as failed: it would be no answer, and a lap left to run to the twin's 60 s limit costs eight laps.
+
+Everything is rounded to what the wire carries (:func:`twin.telemetry.wire.on_the_wire`) before it is raced: the
+twin predicts exactly the gains it will send.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from tuner.search.envelope import ROBUST_RISK, Envelope, Risk
+from tuner.search.gradient import DescentOptions, descend
+from tuner.search.objective import LapObjective
+from tuner.search.space import SearchSpace, robot_bounds
+from tuner.search.start import rescue_start
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+from twin.core.lap import LapLimits
+from twin.telemetry.wire import GAIN_ADDRESSES, on_the_wire
+
+# a few iterations from a warm start: a re-tuning must end within a few laps at real time
+RETUNE_DESCENT = DescentOptions(step=0.05, max_iter=6, ftol=0.02)
+SLOWER = (0.95, 0.9, 0.85, 0.8, 0.7, 0.6)  # v_max of the gains in force scaled by these: the warm starts tried
+
+
+@dataclasses.dataclass(frozen=True)
+class Retune:
+    """A re-tuning's outcome: the gains to send (or the gains in force, when they already finish everywhere)."""
+
+    gains: dict[str, float]
+    changed: bool  # the gains differ from those in force
+    completes: bool  # every lap of the envelope finishes with them
+    envelope: dict[str, tuple[float, ...]]
+    worst_lap_time_s: float | None  # their worst envelope lap (None if one fails)
+    laps: int
+    wall_s: float
+    note: str
+
+    def summary(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def clip_to_bounds(gains: dict[str, float], bounds: dict[str, tuple[float, float]]) -> dict[str, float]:
+    return {a: float(np.clip(v, *bounds[a])) if a in bounds else v for a, v in gains.items()}
+
+
+def bounds_for(twin: DigitalTwin) -> dict[str, tuple[float, float]]:
+    """The tuner's bounds for this robot: what acting may send."""
+    return {a: b for a, b in robot_bounds(twin).items() if a in GAIN_ADDRESSES}
+
+
+def _slowed_start(objective: LapObjective, z0: np.ndarray) -> tuple[np.ndarray, str | None]:
+    """The gains in force slowed down: the fastest of them that finishes every envelope lap (one batch)."""
+    space = objective.space
+    i = space.addresses.index("control.v_max")
+    x0 = space.from_unit(z0)
+    points = []
+    for f in SLOWER:
+        x = x0.copy()
+        x[i] = max(space.lower[i], x0[i] * f)
+        points.append(space.to_unit(x))
+    objective(np.array(points))
+    for f, z in zip(SLOWER, points):
+        e = objective.at(z)
+        if all(r.completed for r in e.laps):
+            return z, f"descent starts from the gains in force with v_max × {f:g}"
+    return rescue_start(objective, z0)
+
+
+def retune_gains(twin: DigitalTwin, address: str, low: float, high: float, seeds: tuple[int, ...], timeout_s: float = 60.0,
+           descent: DescentOptions = RETUNE_DESCENT) -> Retune:
+    """Gains for the twin (its current values are the gains in force and the aligned parameter) that finish
+    every lap with ``address`` at ``low`` and ``high`` and each of ``seeds``; the gains in force when they
+    already do."""
+    t0 = time.perf_counter()
+    bounds = bounds_for(twin)
+    current = {a: twin.space.get(a) for a in GAIN_ADDRESSES}
+    start = on_the_wire(clip_to_bounds(current, bounds))
+    envelope = Envelope.of({address: sorted({float(low), float(high)})}, seeds)
+    space = SearchSpace(twin.space, GAIN_ADDRESSES, bounds)
+    base = twin.clone(start)
+    limits = LapLimits(timeout_s=timeout_s)
+    objective = LapObjective(base, space, limits=limits, envelope=envelope, risk=Risk.parse(ROBUST_RISK))
+    z0 = space.to_unit(np.array([start[a] for a in GAIN_ADDRESSES]))
+    objective(z0[None])
+    first = objective.at(z0)
+    axes = {a: vs for a, vs in envelope.axes}
+    if all(r.completed for r in first.laps) and start == on_the_wire(current):
+        return Retune(current, False, True, axes, max(r.lap_time_s for r in first.laps), objective.laps,
+                      time.perf_counter() - t0, "the gains in force finish every lap of the envelope")
+    z, rescue = (z0, None) if all(r.completed for r in first.laps) else _slowed_start(objective, z0)
+    result = descend(objective, z, descent)
+    gains = on_the_wire(space.assignments(space.from_unit(result.z)))
+    laps = _race(twin, gains, envelope, limits)
+    done = all(r.completed for r in laps)
+    worst = max(r.lap_time_s for r in laps) if done else None
+    note = (f"{len(result.iterations)} iterations from the gains in force" + (f" ({rescue})" if rescue else "")
+            + ("" if done else "; no gains found that finish every lap of the envelope"))
+    return Retune(gains, gains != on_the_wire(current), done, axes, worst, objective.laps + len(laps),
+                  time.perf_counter() - t0, note)
+
+
+def _race(twin: DigitalTwin, gains: dict[str, float], envelope: Envelope, limits: LapLimits):
+    """The gains exactly as they will be sent, over the whole envelope (the twin races what it sends)."""
+    scenarios = envelope.scenarios
+    return run_laps(twin, [{**gains, **sc} for sc in scenarios for _ in envelope.seeds],
+                    seed=[s for _ in scenarios for s in envelope.seeds], limits=limits, keep_traces=False)
+
+
+def predict(twin: DigitalTwin, gains: dict[str, float], seed: int):
+    """The lap the twin expects from the robot with these gains (its own noise seed): a :class:`LapResult`."""
+    return run_laps(twin, [dict(gains)], seed=seed, keep_traces=False)[0]
