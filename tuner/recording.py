@@ -164,3 +164,33 @@ class LiveRecording:
             self._context.__exit__(None, None, None)
         else:
             self._context.__exit__(type(error), error, error.__traceback__)
+
+
+def save_history(save: str | None, view: bool, entries: Sequence[dict]) -> str | None:
+    """Each robot's life (``history``): lap times and the twin's predictions, the aligned parameter and its trend,
+    by the robot's lap counted across runs; each change of gains as a text line on the lap it came into force."""
+    if not save and not view:
+        return None
+    blueprint = rrb.Blueprint(rrb.Horizontal(
+        rrb.TimeSeriesView(name="lap time [s]", origin="/history", contents=["/history/**/lap_time/**"]),
+        rrb.TimeSeriesView(name="aligned parameters", origin="/history", contents=["/history/**/aligned/**"]),
+        rrb.TextLogView(name="gain changes", origin="/history"),
+    ), collapse_panels=True)
+    with recording(save, view, blueprint, app_id=f"{twin_recording.APP_ID}-history") as rec:
+        for e in entries:
+            robot = re.sub(r"[^A-Za-z0-9_.-]+", "_", e["robot"])
+            for who, key in (("robot", "lap_time_s"), ("twin", "twin_lap_time_s")):
+                rows = [r for r in e["lap_times"] if r[key] is not None]
+                if rows:
+                    _series(rec, f"history/{robot}/lap_time/{who}", [rr.TimeColumn("lap", sequence=[r["n"] for r in rows])],
+                            [r[key] for r in rows])
+            for address in e["trends"]:
+                pts = [a for a in e["alignments"] if a["address"] == address and a["value"] is not None]
+                if pts:
+                    _series(rec, f"history/{robot}/aligned/{address}", [rr.TimeColumn("lap", sequence=[a["lap"] for a in pts])],
+                            [a["value"] for a in pts])
+            for ch in e["changes"]:
+                at = ch["first_lap"] if ch["first_lap"] is not None else ch["decided_lap"]
+                rec.set_time("lap", sequence=at or 0)
+                rec.log(f"history/{robot}/changes", rr.TextLog(f"#{ch['seq']} {ch['kind']} {ch['status']}: {ch['outcome'] or ''}"))
+    return _saved(save)

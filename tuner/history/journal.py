@@ -40,20 +40,29 @@ class Journal:
         check_journal(path)
         self.path = path
         self._lock = threading.Lock()
+        self.lines = _count_lines(path)  # the next record's index: its line in the file (the header is line 0)
         try:
             self.file = open(path, "ab", buffering=0)
             if self.file.tell() == 0:
                 self.file.write(_line({"generator": GENERATOR, "kind": ACTIONS_KIND, "log": log_name}))
+                self.lines = 1
+            elif not _ends_with_newline(path):
+                self.file.write(b"\n")  # a line torn by a crash: ended, so the next one stands alone
+                self.lines += 1
         except OSError as e:
             raise TwinError(f"{path}: cannot write the live actions ({e.strerror or e})") from None
 
-    def write(self, action: dict) -> None:
+    def write(self, action: dict) -> int:
+        """Append one record; its index (line number)."""
         with self._lock:
+            index = self.lines
             try:
                 self.file.write(_line(action))
                 os.fsync(self.file.fileno())
+                self.lines += 1
             except OSError as e:  # the telemetry log is the record; this one is reported and carried on without
                 log.warning("%s: cannot append an action (%s)", self.path, e.strerror or e)
+            return index
 
     def close(self) -> None:
         self.file.close()
@@ -63,22 +72,40 @@ def _line(doc: dict) -> bytes:
     return (json.dumps(json_safe(doc), separators=(",", ":"), default=str) + "\n").encode()
 
 
-def read_journal(path: str) -> list[dict]:
-    """The actions of a journal (none without one); damaged lines (a torn last line) are skipped with a warning."""
+def _count_lines(path: str) -> int:
+    try:
+        with open(path, "rb") as f:
+            return sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 16), b""))
+    except FileNotFoundError:
+        return 0
+
+
+def _ends_with_newline(path: str) -> bool:
+    with open(path, "rb") as f:
+        if f.seek(0, os.SEEK_END) == 0:
+            return True
+        f.seek(-1, os.SEEK_END)
+        return f.read(1) == b"\n"
+
+
+def read_journal(path: str) -> list[tuple[int, dict]]:
+    """(line, record) for each record of a journal (none without one); damaged lines (a torn last line) are
+    skipped with a warning."""
     if not os.path.isfile(path):
         return []
     check_journal(path)
     out, bad = [], 0
     with open(path, "rb") as f:
-        f.readline()
-        for raw in f.read(ACTIONS_LIMIT).splitlines():
+        for index, raw in enumerate(f.read(ACTIONS_LIMIT).split(b"\n")):
+            if index == 0:
+                continue
             try:
                 doc = json.loads(raw)
             except ValueError:
                 bad += bool(raw.strip())
                 continue
             if isinstance(doc, dict):
-                out.append(doc)
+                out.append((index, doc))
     if bad:
         log.warning("%s: %d damaged lines skipped", path, bad)
     return out

@@ -179,6 +179,7 @@ class LiveTwin:
         r["lap"] = len(self.laps)
         r["time"] = time.time()
         r["address"] = self.o.address
+        r["robot"] = self.assembler.header.robot if self.assembler.header else None
         if r["explained"] and r["value"] is not None:
             self.twin.set(self.o.address, r["value"])
             log.info("aligned %s: %.5g → %.5g (%s)", self.o.address, r["before"], r["value"], r["reason"])

@@ -33,6 +33,7 @@ def add_parser(sub) -> None:
                    "set-points out (the firmware still calibrates)")
     p.add_argument("--map", action="append", metavar="FMU_VARIABLE=TWIN_PORT", help="connect a variable of the "
                    "--controller-fmu to a twin port, repeatable (default: by name)")
+    o.add_db(p, "the lap")
     o.add_json(p)
     o.add_recording(p, "the lap")
     o.add_verbose(p)
@@ -46,6 +47,7 @@ def lap_summary(result, twin, seed: int) -> dict:
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     recording.check_targets(args.save, args.view)  # before the lap: a bad path fails now, not after
+    o.check_db(args.db)
     twin = o.twin_from_args(args)
     warning = o.gains_warning(args, twin)
     limits, keep = LapLimits(timeout_s=args.lap_timeout), bool(args.save or args.view)
@@ -70,6 +72,9 @@ def run(args: argparse.Namespace) -> int:
         summary["mcu"] = mcu.summary()
     if controller:
         summary["controller"] = controller.describe()
+    from tuner.history import record_lap
+
+    summary["history"] = o.keep_history(args.db, lambda h: record_lap(h, twin, result), out)
     out.document(summary)
     if result.completed:
         out.say(f"lap completed in {result.lap_time_s:.3f} s on {twin.track.name} ({twin.track.length_m:.2f} m)")

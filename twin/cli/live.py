@@ -15,7 +15,7 @@ from twin.cli import options as o
 from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
 from twin.errors import TwinError
-from tuner.history import Journal, actions_path, check_journal, read_journal
+from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display, read_journal
 from tuner.live import (ActOptions, Actor, LiveOptions, LiveTwin, Worker, check_state, decode_line, feed_line, replay_log,
                         resume)
 from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, check_port, read_link
@@ -59,6 +59,7 @@ def add_parser(sub) -> None:
                    help="at most one change of gains per N laps")
     p.add_argument("--confirm-laps", type=o.count_type, default=ActOptions.confirm_laps, metavar="N",
                    help="laps with new gains compared with the prediction before they are confirmed (or rolled back)")
+    o.add_db(p, "the robot's life (robots, runs, laps, alignments, gain changes)")
     p.add_argument("--ack-timeout", type=o.number(0.01, 3600.0), default=ActOptions.ack_timeout_s, metavar="WALL_S",
                    help="how long to wait for the robot's answer to a command")
     o.add_json(p)
@@ -75,10 +76,13 @@ def run(args: argparse.Namespace) -> int:
         input_file(args.replay, "telemetry log")
         if args.act:
             raise TwinError("live --act: acting needs a robot to send to: give --port, not --replay")
+        if args.db:
+            raise TwinError("live --replay --db: a log goes into the history with history --rebuild --log LOG --db URL")
     else:
         if not args.port:
             raise TwinError("live: give --port PATH_OR_URL (or --replay LOG)")
         check_port(args.port)  # a malformed URL is refused before the twin is built
+    o.check_db(args.db)
     twin = o.twin_from_args(args)
     warning = o.gains_warning(args, twin)
     twin.model()
@@ -149,7 +153,7 @@ def _replay(args, twin, options: LiveOptions, on_lap, out: Output) -> dict:
 def _actor(args, twin, options: LiveOptions, outbox: Outbox, journal: Journal, on_action) -> Actor | None:
     if not args.act:
         return None
-    past = read_journal(journal.path)
+    past = [a for _, a in read_journal(journal.path)]
     known = {a["seq"]: a["gains"] for a in past if a.get("kind") == "decide" and a.get("gains")}
     sent = [a["seq"] for a in past if isinstance(a.get("seq"), int)]
     act = ActOptions(every_laps=args.act_every, confirm_laps=args.confirm_laps, ack_timeout_s=args.ack_timeout)
@@ -158,12 +162,14 @@ def _actor(args, twin, options: LiveOptions, outbox: Outbox, journal: Journal, o
                  next_seq=max(sent, default=0) + 1, known=known)
 
 
-def _action_printer(out: Output, journal: Journal, rec, actions: list[dict]):
-    """Each action: to the journal beside the log, one human line (commands only to the journal), the recording
-    and the summary."""
+def _action_printer(out: Output, journal: Journal, rec, actions: list[dict], db: HistoryWriter | None):
+    """Each action: to the journal beside the log (and the database), one human line (commands only to the
+    journal), the recording and the summary."""
 
     def on_action(a: dict) -> None:
-        journal.write(a)
+        index = journal.write(a)
+        if db is not None:
+            db.journal_record(a, index)
         if a["kind"] == "command":
             return
         actions.append(a)
@@ -174,18 +180,24 @@ def _action_printer(out: Output, journal: Journal, rec, actions: list[dict]):
     return on_action
 
 
-def _journal_record(journal: Journal, address: str):
-    """What the live twin keeps (each lap's twin side, each alignment) to the journal beside the log."""
+def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
+    """What the live twin keeps (each lap's twin side, each alignment) to the journal beside the log, and the
+    database."""
 
     def on_record(r: dict) -> None:
         if r["kind"] == "lap":
             lap = r["lap_record"]
-            journal.write({"kind": "lap", "lap": r["lap"], "robot": r["robot"], "gains_seq": r["gains_seq"],
-                           "robot_lap_time_s": r["robot_lap_time_s"], "twin_lap_time_s": r["twin_lap_time_s"],
-                           "discrepancy": r["discrepancy"], "value": {address: r[address]}, "gains": r["gains"],
-                           "implausible": lap.implausible})
+            record = {"kind": "lap", "lap": r["lap"], "time": round(time.time(), 3), "robot": r["robot"],
+                      "gains_seq": r["gains_seq"], "robot_lap_time_s": r["robot_lap_time_s"],
+                      "twin_lap_time_s": r["twin_lap_time_s"], "discrepancy": r["discrepancy"],
+                      "value": {address: r[address]}, "gains": r["gains"], "implausible": lap.implausible}
+            journal.write(record)
+            if db is not None:
+                db.lap(lap, record)
         else:
-            journal.write({k: v for k, v in r.items()})
+            index = journal.write(r)
+            if db is not None:
+                db.journal_record(r, index)
 
     return on_record
 
@@ -198,18 +210,21 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     check_state(state)  # a file that is not a state of ours is refused before the log is even opened
     check_journal(actions_path(args.log))
     log_file = DurableLog(args.log)  # locked, a cut-off last line marked: before anything reads it
-    journal, actions, outbox = None, [], Outbox()
+    journal, actions, outbox, db = None, [], Outbox(), None
     try:
         journal = Journal(actions_path(args.log), os.path.basename(args.log))
-        actor = _actor(args, twin, options, outbox, journal, _action_printer(out, journal, rec, actions))
-        live = LiveTwin(twin, options, state, on_lap, actor, _journal_record(journal, options.address))
+        db = HistoryWriter(args.db, args.log, out.say) if args.db else None
+        actor = _actor(args, twin, options, outbox, journal, _action_printer(out, journal, rec, actions, db))
+        live = LiveTwin(twin, options, state, on_lap, actor, _journal_record(journal, options.address, db))
         start_laps = resume(live, args.log)
         if start_laps:
             out.say(f"resumed {start_laps} laps from {args.log}")
-        journal.write({"kind": "session", "time": round(time.time(), 3), "lap": start_laps, "act": bool(args.act),
-                       "address": options.address, "gains": {a: v for a, v in twin.space.values.items()
-                                                             if a.startswith("control.")},
-                       "pitch_m": twin.space.get("sensor.pitch")})
+        session = {"kind": "session", "time": round(time.time(), 3), "lap": start_laps, "act": bool(args.act),
+                   "address": options.address, "port": args.port, "pitch_m": twin.space.get("sensor.pitch"),
+                   "gains": {a: v for a, v in twin.space.values.items() if a.startswith("control.")}}
+        index = journal.write(session)
+        if db is not None:
+            db.journal_record(session, index)
         stop = _stopper(args, live, start_laps, signalled)
         worker = Worker(live, stop) if actor is not None else None
 
@@ -237,11 +252,14 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
         log_file.close()
         if journal is not None:
             journal.close()
+        if db is not None:
+            db.close()
     summary = _summary(args, live, stats, start_laps, state, gave_up, signalled)
     summary["log_error"] = str(log_error) if log_error else None
     summary["actions"] = actions
     summary["changes"] = actor.summary() if actor is not None else []
     summary["journal"] = os.path.abspath(journal.path)
+    summary["history"] = None if db is None else {"db": display(args.db), "written": db.written, "error": db.failed}
     out.say(f"{summary['laps']} laps ({summary['implausible_laps']} implausible), {stats.lines} lines "
             f"({stats.corrupted} corrupted), {stats.reconnects} reconnects; "
             f"{options.address} = {summary['value'][options.address]:.5g}; log {summary['log']}")

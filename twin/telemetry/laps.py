@@ -29,6 +29,8 @@ class RobotLap:
     implausible: str | None = None  # why this lap cannot be what a robot on this track did
     robot: str | None = None  # the robot's id from the lap's header (None: a version 1 robot)
     gains_seq: int | None = None  # the command whose gains were in force, from the lap's header (0: as booted)
+    failure: str | None = None  # the FAIL event's reason
+    sensors: int = 8  # the header's sensor count: positions run 0 … (sensors − 1)·1000
 
 
 SPAN_TOLERANCE_S = 0.05  # a LAP's lap time may differ from its START→LAP span by this much, plus …
@@ -72,7 +74,7 @@ class LapAssembler:
             a = np.array(self.rows) if self.rows else np.zeros((0, 4))
             h = self.header
             lap = RobotLap(self.count, rec.lap_time_s, a[:, 0], a[:, 1], a[:, 2], a[:, 3], problem,
-                           h.robot if h else None, h.gains_seq if h else None)
+                           h.robot if h else None, h.gains_seq if h else None, rec.reason, self.sensors)
             self.count += 1
             self.start, self.rows, self.problem = None, [], None
             return lap
