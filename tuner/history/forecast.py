@@ -58,13 +58,27 @@ def _fails(twin: DigitalTwin, gains: dict, address: str, values, seeds: int, see
     return [any(not r.completed for r in laps[i * seeds:(i + 1) * seeds]) for i in range(len(values))], len(laps)
 
 
+def first_failure(twin: DigitalTwin, gains: dict, address: str, start: float, end: float, seeds: int, seed: int,
+                  limits: LapLimits) -> tuple[float | None, bool, int]:
+    """Racing ``gains`` from ``address`` = ``start`` towards ``end``: (the first value where a lap fails, refined
+    between the ladder's steps; None if none does), whether they fail at ``start`` already, laps run."""
+    values = np.linspace(start, end, LADDER)
+    fails, laps = _fails(twin, gains, address, values, seeds, seed, limits)
+    if fails[0] or not any(fails):
+        return (float(start) if fails[0] else None), fails[0], laps
+    i = fails.index(True)
+    fine = np.linspace(values[i - 1], values[i], REFINE + 2)[1:-1]
+    more, n = _fails(twin, gains, address, fine, seeds, seed, limits)
+    return (float(fine[more.index(True)]) if any(more) else float(values[i])), False, laps + n
+
+
 def _laps_until(target: float, t: Trend, now: int, slope: float) -> float:
     if slope == 0 or (target - t.at(now)) / slope < 0:
         return math.inf
     return (target - t.at(now)) / slope
 
 
-def forecast(twin: DigitalTwin, gains: dict, t: Trend, now_lap: int, seeds: int = ROBUST_SEEDS, seed: int = 0,
+def forecast_failure(twin: DigitalTwin, gains: dict, t: Trend, now_lap: int, seeds: int = ROBUST_SEEDS, seed: int = 0,
              lap_timeout_s: float = 30.0) -> Forecast:
     """Where along the trend ``t`` the ``gains`` start failing on the twin, and in how many laps from ``now_lap``."""
     p = twin.space.parameter(t.address)
@@ -74,25 +88,19 @@ def forecast(twin: DigitalTwin, gains: dict, t: Trend, now_lap: int, seeds: int 
     service = SERVICE.get(t.address)
     if service is not None and (service[0] - now) * direction > 0:
         end = now + 2 * (service[0] - now)  # twice as far as the service limit: far enough, and finely spaced
-    values = np.linspace(now, end, LADDER)
-    limits = LapLimits(timeout_s=lap_timeout_s)
-    fails, laps = _fails(twin, gains, t.address, values, seeds, seed, limits)
+    failing, already, laps = first_failure(twin, gains, t.address, now, end, seeds, seed,
+                                           LapLimits(timeout_s=lap_timeout_s))
     advice: list[str] = []
-    if fails[0]:
-        failing, note = now, f"the gains fail already at {t.address} = {now:.4g}"
-    elif not any(fails):
-        failing, note = None, f"the gains finish every lap raced for {t.address} from {now:.4g} to {end:.4g}"
+    if already:
+        note = f"the gains fail already at {t.address} = {now:.4g}"
+    elif failing is None:
+        note = f"the gains finish every lap raced for {t.address} from {now:.4g} to {end:.4g}"
     else:
-        i = fails.index(True)
-        fine = np.linspace(values[i - 1], values[i], REFINE + 2)[1:-1]
-        more, n = _fails(twin, gains, t.address, fine, seeds, seed, limits)
-        laps += n
-        failing = float(fine[more.index(True)]) if any(more) else float(values[i])
         note = f"the gains first fail at {t.address} = {failing:.4g} (they finish at {now:.4g})"
     laps_to = interval = None
     if failing is not None:
-        laps_to = 0.0 if fails[0] else _laps_until(failing, t, now_lap, t.slope)
-        if fails[0]:
+        laps_to = 0.0 if already else _laps_until(failing, t, now_lap, t.slope)
+        if already:
             interval = (0.0, 0.0)
         else:
             steep, shallow = t.slope + direction * Z95 * t.slope_se, t.slope - direction * Z95 * t.slope_se
@@ -100,7 +108,7 @@ def forecast(twin: DigitalTwin, gains: dict, t: Trend, now_lap: int, seeds: int 
             hi = _laps_until(failing, t, now_lap, shallow) if shallow * direction > 0 else math.inf
             interval = (min(lo, laps_to), max(hi, laps_to))
         if laps_to <= RETUNE_WITHIN:
-            advice.append("re-tune now" + (": the gains in force already fail" if fails[0] else
+            advice.append("re-tune now" + (": the gains in force already fail" if already else
                                            f": the gains in force stop finishing in about {laps_to:.0f} laps")
                           + " (live --act does it, or tune with --set " + f"{t.address}={failing:.4g})")
     if service is not None:

@@ -29,7 +29,7 @@ def log_laps(path: str) -> list[RobotLap]:
     return out
 
 
-def rebuild(history: History, log_path: str) -> dict:
+def rebuild_log(history: History, log_path: str) -> dict:
     """Rebuild the rows of one log; what was done (counts)."""
     log_path = os.path.abspath(log_path)
     laps = log_laps(log_path)

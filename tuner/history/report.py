@@ -13,9 +13,9 @@ import numpy as np
 import sqlalchemy as sa
 
 from tuner.history import schema as s
-from tuner.history.forecast import forecast
+from tuner.history.forecast import forecast_failure
 from tuner.history.store import History
-from tuner.history.trend import trend
+from tuner.history.trend import trend_of
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.telemetry.wire import GAIN_ADDRESSES
@@ -109,13 +109,13 @@ def report(history: History, twin: DigitalTwin | None, name: str | None = None, 
                                 "twin_lap_time_s": r["twin_lap_time_s"]} for r in laps],
                  "changes": changes, "alignments": aligned, "trends": {}, "forecast": None, "advice": []}
         for address in sorted({a["address"] for a in aligned}):
-            t = trend(aligned, address, TREND_POINTS)
+            t = trend_of(aligned, address, TREND_POINTS)
             entry["trends"][address] = t.summary() if t else None
         gains = gains_in_force(laps, changes)
         entry["gains_in_force"] = gains
-        trends = [t for t in (trend(aligned, a, TREND_POINTS) for a in entry["trends"]) if t is not None]
+        trends = [t for t in (trend_of(aligned, a, TREND_POINTS) for a in entry["trends"]) if t is not None]
         if twin is not None and trends and gains and laps:
-            f = forecast(twin, gains, trends[0], laps[-1]["n"], seed=seed)
+            f = forecast_failure(twin, gains, trends[0], laps[-1]["n"], seed=seed)
             entry["forecast"], entry["advice"] = f.summary(), list(f.advice)
         out.append(entry)
     return out

@@ -52,6 +52,8 @@ def _engine(url: str) -> sa.Engine:
         raise HistoryError(f"--db {url}: not a database URL (e.g. sqlite:///history.sqlite, "
                            "postgresql+psycopg://user@host/db)") from None
     args = {}
+    if parsed.drivername == "postgresql":  # SQLAlchemy's default driver is psycopg2; this package brings psycopg 3
+        parsed = parsed.set(drivername="postgresql+psycopg")
     if parsed.get_backend_name() == "sqlite":
         database = parsed.database
         if database and database != ":memory:" and not database.startswith("file:"):

@@ -44,7 +44,7 @@ def _points(alignments: Iterable[dict], address: str) -> list[tuple[float, float
     return out
 
 
-def trend(alignments: Iterable[dict], address: str, last: int | None = None) -> Trend | None:
+def trend_of(alignments: Iterable[dict], address: str, last: int | None = None) -> Trend | None:
     """The line through the alignments of ``address`` (the ``last`` of them, all by default); None with fewer than
     two at different laps."""
     pts = _points(alignments, address)

@@ -6,7 +6,8 @@ A change goes through: decided (re-tuned and raced) → sent (SET, its sequence 
 answer within ``ack_timeout_s``: the robot keeps its gains, the twin says why) → in force (a lap header carries
 its number: the robot applies gains only between laps) → confirmed after ``confirm_laps`` laps (then STORE, so the
 robot keeps them across power cycles) or rolled back (SET of the gains before) when those laps did worse than
-before: more failures, or slower than both the prediction and the laps before by more than the threshold.
+before: more failures, or slower than both the prediction and the laps before by more than ``tolerance`` (2 %:
+a lap's noise and a few laps of drift stay within it).
 
 Guards: gains only inside the tuner's bounds for this robot; at most one change every ``every_laps`` laps; none
 while another is unconfirmed; none that the twin has not raced over the envelope (every lap finished); none to a
@@ -46,6 +47,7 @@ class ActOptions:
     margin: float = 0.1  # the envelope reaches this fraction beyond the aligned value
     horizon_laps: int = 10  # … or as far as the parameter's trend goes in this many laps
     seeds: int = 2  # noise seeds per envelope value
+    tolerance: float = 0.02  # laps slower than predicted and than before by more than this fraction did worse
 
 
 @dataclasses.dataclass
@@ -71,7 +73,7 @@ def _times(entries: list[dict]) -> tuple[int, float | None]:
     return len(entries) - len(done), (float(np.mean(done)) if done else None)
 
 
-def judge(change: Change, threshold: float) -> tuple[bool, str]:
+def judge(change: Change, tolerance: float) -> tuple[bool, str]:
     """(worse than before, why): the laps with the new gains against the prediction and the laps before them."""
     fails_after, after = _times(change.after)
     fails_before, before = _times(change.before)
@@ -81,8 +83,8 @@ def judge(change: Change, threshold: float) -> tuple[bool, str]:
         return False, "every lap failed, as before"
     p = change.predicted_lap_time_s
     off = f"{after:.3f} s against {p:.3f} s predicted" if p else f"{after:.3f} s"
-    slower_than_predicted = p is not None and after > p * (1 + threshold)
-    if slower_than_predicted and before is not None and after > before * (1 + threshold):
+    slower_than_predicted = p is not None and after > p * (1 + tolerance)
+    if slower_than_predicted and before is not None and after > before * (1 + tolerance):
         return True, f"{off}, slower than the {before:.3f} s before"
     return False, off + (f", {before:.3f} s before" if before is not None else "")
 
@@ -95,7 +97,6 @@ class Actor:
       twin: the live twin's twin (its gains are the gains in force, as far as the twin knows).
       address: the re-aligned parameter.
       options: the guards and the envelope.
-      threshold: relative lap-time difference that counts (the live twin's).
       seed: the twin's noise seed (predictions); re-tuning uses this and the next seeds.
       send: queues one command line for the robot (with its answer deadline).
       on_action: every action, as a dict.
@@ -103,10 +104,10 @@ class Actor:
       known: gains by sequence number the twin sent before (from its journal).
     """
 
-    def __init__(self, twin: DigitalTwin, address: str, options: ActOptions, threshold: float, seed: int,
+    def __init__(self, twin: DigitalTwin, address: str, options: ActOptions, seed: int,
                  send: Callable[[str, float], None], on_action: Callable[[dict], None], next_seq: int = 1,
                  known: dict[int, dict] | None = None):
-        self.twin, self.address, self.o, self.threshold, self.seed = twin, address, options, threshold, seed
+        self.twin, self.address, self.o, self.seed = twin, address, options, seed
         self.send_line, self.on_action = send, on_action
         self.seq = max(1, next_seq)
         self.known: dict[int, dict[str, float]] = dict(known or {})
@@ -234,7 +235,7 @@ class Actor:
         c.after.append(entry)
         if len(c.after) < self.o.confirm_laps:
             return
-        worse, why = judge(c, self.threshold)
+        worse, why = judge(c, self.o.tolerance)
         if not worse or c.kind == "rollback":
             c.status = "confirmed"
             self._act("confirm", c, outcome=why)

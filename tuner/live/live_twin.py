@@ -29,7 +29,7 @@ from typing import Callable
 import numpy as np
 
 from tuner.align.lap_time import align_lap_time
-from tuner.history import trend
+from tuner.history import first_failure, trend_of
 from tuner.live.act import Actor
 from tuner.live.state import read_state, write_state
 from twin.core.closed_loop import run_laps
@@ -133,8 +133,40 @@ class LiveTwin:
             recent = [e["robot_lap_time_s"] for e in self.laps[-self.o.k_laps:] if e["robot_lap_time_s"]]
             if recent:
                 self._start_alignment(float(np.mean(recent)), entry)
+            elif self.actor is not None:  # every lap failed: no lap time to align on, but failures say much
+                self._apply_alignment(result=self._from_failures())
         if self.actor is not None:
             self.actor.end_of_lap()
+
+    def _from_failures(self) -> dict:
+        """When the robot's last laps all failed with gains the twin finishes with: where it is now along the
+        trend of its alignments, else the most the parameter can be (the value where the twin's laps with these
+        gains first fail, raced downward from the twin's value: the robot's must lie beyond it)."""
+        address, value = self.o.address, self.twin.space.get(self.o.address)
+        t = trend_of(self.alignments, address)
+        reason = f"the robot's last {self.streak} laps failed, the twin's finish at {address} = {value:.4g}"
+        if t is not None and (t.at(len(self.laps)) - value) * t.slope > 0:
+            est = t.at(len(self.laps))
+            how = f"its trend ({t.slope:+.3g} per lap) puts it at {est:.4g} now"
+        else:
+            p = self.twin.space.parameter(address)
+            gains = {a: self.twin.space.get(a) for a in GAIN_ADDRESSES}
+            end = max(p.lower, value * 0.5) if (t is None or t.slope <= 0) else min(p.upper, value * 1.5)
+            est, _, _ = first_failure(self.twin, gains, address, value, end, 1, self.o.seed, self._limits())
+            if est is None:
+                return {"explained": False, "value": None, "reason": reason, "before": value,
+                        "message": f"the twin's laps with these gains finish from {value:.4g} to {end:.4g}: the "
+                                   "failures are not explained by it"}
+            how = f"the twin's laps with these gains first fail at {est:.4g}"
+        margin = abs(est) * 0.05
+        return {"explained": True, "value": est, "reason": reason, "before": value, "measured_lap_time_s": None,
+                "message": f"{address} estimated from failed laps: {how}", "from_failures": True,
+                "interval": [est - margin, est + margin], "identifiable": False}
+
+    def _limits(self) -> LapLimits:
+        """Laps of the twin's own searches end as failures at twice the robot's lap (not at 60 s)."""
+        done = [e["robot_lap_time_s"] for e in self.laps if e["robot_lap_time_s"]]
+        return LapLimits(timeout_s=2 * float(np.median(done[-10:]))) if done else LapLimits()
 
     def _record(self, entry: dict, lap: RobotLap, twin_lap, replay: bool) -> None:
         self.laps.append(entry)
@@ -153,7 +185,8 @@ class LiveTwin:
 
         def work():
             try:
-                r = align_lap_time(other, measured, self.o.address, bounds=self.o.bounds, seed=self.o.seed)
+                r = align_lap_time(other, measured, self.o.address, bounds=self.o.bounds, seed=self.o.seed,
+                                   limits=LapLimits(timeout_s=max(2 * measured, measured + 10)))
                 interval = getattr(r, "consistent", None)
                 self._result = {"explained": r.explained, "value": r.value, "message": r.message, "reason": reason,
                                 "measured_lap_time_s": measured, "before": values[self.o.address],
@@ -191,10 +224,8 @@ class LiveTwin:
         if self.on_record:
             self.on_record({"kind": "alignment", **r})
         if self.actor is not None:
-            recent = [e["robot_lap_time_s"] for e in self.laps[-self.o.k_laps:] if e["robot_lap_time_s"]]
-            slope = trend(self.alignments, self.o.address)
-            self.actor.consider(r, len(self.laps), float(np.mean(recent)) if recent else None,
-                                slope.slope if slope else None)
+            slope = trend_of(self.alignments, self.o.address)
+            self.actor.consider(r, len(self.laps), self._limits().timeout_s / 2, slope.slope if slope else None)
 
     def finish(self) -> None:
         """Wait for a running alignment and apply it."""

@@ -134,32 +134,31 @@ def _robot_end(args, twin) -> RobotEnd | None:
     return RobotEnd(args.robot_id, {a: twin.space.get(a) for a in GAIN_ADDRESSES}, limits, eeprom, args.commands)
 
 
-def _receiver(fd: int):
+class _Receiver:
     """Bytes the twin sent on ``fd`` (a pty master or a socket), waiting at most ``timeout``; b"" once it closed."""
-    closed = False
 
-    def receive(timeout: float) -> bytes:
-        nonlocal closed
-        if closed:
+    def __init__(self, fd: int):
+        self.fd, self.closed = fd, False
+
+    def __call__(self, timeout: float) -> bytes:
+        if self.closed:
             time.sleep(timeout)
             return b""
-        ready, _, _ = select.select([fd], [], [], timeout)
+        ready, _, _ = select.select([self.fd], [], [], timeout)
         if not ready:
             return b""
         try:
-            data = os.read(fd, 4096)
+            data = os.read(self.fd, 4096)
         except (BlockingIOError, InterruptedError):
             return b""
         except OSError:
             data = b""
-        closed = not data
+        self.closed = not data
         return data
-
-    return receive
 
 
 def _commands(args, robot: RobotEnd | None, fd: int) -> CommandPort | None:
-    return None if robot is None else CommandPort(_receiver(fd), robot, args.lockstep, args.idle_timeout)
+    return None if robot is None else CommandPort(_Receiver(fd), robot, args.lockstep, args.idle_timeout, args.laps)
 
 
 def _serve_tcp(args, lines, echo, out: Output, robot: RobotEnd | None) -> None:
@@ -168,10 +167,13 @@ def _serve_tcp(args, lines, echo, out: Output, robot: RobotEnd | None) -> None:
         url = f"socket://127.0.0.1:{server.getsockname()[1]}"
         out.document({"link": url, "gains_warning": args.gains_warning})
         out.say(f"robot emulator on {url}")
+        commands = _commands(args, robot, -1)  # one robot across connections; each brings its own way back
         while True:
             conn = accept(server, args.idle_timeout)
+            if commands is not None:
+                commands.receive = _Receiver(conn.fileno())
             try:
-                stream(lines, conn.sendall, args.speed, echo, _commands(args, robot, conn.fileno()))
+                stream(lines, conn.sendall, args.speed, echo, commands)
                 return
             except OSError:
                 continue  # the reader went away: wait (at most --idle-timeout) for the next one, carry on with the laps

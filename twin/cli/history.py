@@ -10,7 +10,7 @@ import math
 import os
 
 from lf_common.files import input_file, output_dir
-from tuner.history import History, check_db, display, rebuild
+from tuner.history import History, check_db, display, rebuild_log
 from tuner.history.charts import robot_chart
 from tuner.history.report import report
 from tuner.recording import save_history
@@ -125,7 +125,7 @@ def _rebuild(args, out: Output) -> int:
     done = []
     try:
         for path in args.log:
-            r = rebuild(history, path)
+            r = rebuild_log(history, path)
             done.append(r)
             out.say(f"rebuilt {r['laps']} laps and {r['journal_records']} journaled records of {r['log']} "
                     f"(replacing {r['runs_replaced']} runs) in {display(args.db)}")

@@ -157,7 +157,7 @@ def _actor(args, twin, options: LiveOptions, outbox: Outbox, journal: Journal, o
     known = {a["seq"]: a["gains"] for a in past if a.get("kind") == "decide" and a.get("gains")}
     sent = [a["seq"] for a in past if isinstance(a.get("seq"), int)]
     act = ActOptions(every_laps=args.act_every, confirm_laps=args.confirm_laps, ack_timeout_s=args.ack_timeout)
-    return Actor(twin, options.address, act, options.threshold, options.seed,
+    return Actor(twin, options.address, act, options.seed,
                  lambda line, deadline: outbox.put(line.encode("ascii"), deadline), on_action,
                  next_seq=max(sent, default=0) + 1, known=known)
 

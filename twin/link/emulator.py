@@ -160,8 +160,9 @@ class CommandPort:
     """
 
     def __init__(self, receive: Callable[[float], bytes], robot: RobotEnd, lockstep: bool = False,
-                 idle_timeout_s: float = 60.0):
+                 idle_timeout_s: float = 60.0, laps: int | None = None):
         self.receive, self.robot, self.lockstep, self.idle_timeout_s = receive, robot, lockstep, idle_timeout_s
+        self.laps, self.ended = laps, 0  # after its last lap the robot waits for nothing
 
     def serve(self, timeout: float, send: Callable[[str], None]) -> None:
         """Answer what arrives within ``timeout`` [s] (0: only what is there now)."""
@@ -174,11 +175,17 @@ class CommandPort:
                 return
 
     def await_command(self, send: Callable[[str], None]) -> None:
-        """Lockstep: after a lap, wait for the twin's next command (answered)."""
+        """Lockstep: after a lap (but its last), wait for the twin's next command (answered). A twin that closed
+        the link is gone (:class:`ConnectionResetError`: a TCP robot then waits for the next one)."""
+        self.ended += 1
+        if self.laps is not None and self.ended >= self.laps:
+            return
         seen, end = self.robot.received, time.monotonic() + self.idle_timeout_s
         while self.robot.received == seen:
             if time.monotonic() > end:
                 raise NoReader(f"lockstep: no command from the twin for {self.idle_timeout_s:g} s after a lap")
+            if getattr(self.receive, "closed", False):
+                raise ConnectionResetError("lockstep: the twin closed the link")
             self.serve(0.05, send)
 
 
