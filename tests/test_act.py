@@ -10,17 +10,20 @@ test): there ``tuner.live.act.retune_gains`` is a stand-in that returns the gain
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 import sqlalchemy as sa
 
 import tuner.live.act
 from live_helpers import RUN, Pumped, emulator
-from tuner.history import schema
+from tuner.history import log_laps, schema
+from tuner.live import ActOptions, Actor
 from tuner.live.retune import Retune
 from twin.cli.main import main
+from twin.core.digital_twin import DigitalTwin
 from twin.link.robot_end import SLOT_SIZE, read_stored
-from twin.telemetry.wire import Event, Header, WireError, decode
+from twin.telemetry.wire import Header, Reply, gains_to_wire
 
 # gains tuned plainly for the robot as built (μ = 0.9): they lose the line somewhere below μ ≈ 0.75
 PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
@@ -39,17 +42,7 @@ def robot(tmp_path, *args) -> Pumped:
 
 def echoed_laps(path) -> list[tuple[int, float | None]]:
     """(gains in force, lap time or None for a failed lap) of each lap the robot sent, from its own record."""
-    out, seq = [], None
-    for line in open(path):
-        try:
-            rec = decode(line)
-        except WireError:
-            continue
-        if isinstance(rec, Header):
-            seq = rec.gains_seq
-        elif isinstance(rec, Event) and rec.event in ("LAP", "FAIL"):
-            out.append((seq, rec.lap_time_s if rec.event == "LAP" else None))
-    return out
+    return [(lap.gains_seq, lap.lap_time_s) for lap in log_laps(str(path))]
 
 
 def live_json(capsys, *args) -> tuple[int, dict, str]:
@@ -164,3 +157,24 @@ def test_a_robot_that_refuses_or_stays_silent_keeps_its_gains(tmp_path, capsys, 
     assert why in said["outcome"] and "keeps its gains #0" in said["outcome"]
     assert {s for s, _ in echoed_laps(tmp_path / "echo.txt")} == {0}  # the robot ran its own gains throughout
     assert f"act: {kind}" in err
+
+
+@pytest.mark.quick
+def test_a_change_the_robot_reports_in_force_before_its_first_lap_header_is_followed(stand_in_retune):
+    """At real time a re-tuning holds the reader for a few laps: the robot's answer to GET (gains #n in force) may
+    be read before the header of the first lap it ran them on. The change is in force either way, once."""
+    new = {**PLAIN, "control.v_max": 1.2}
+    stand_in_retune.update(new)
+    twin = DigitalTwin()
+    sent, actions = [], []
+    actor = Actor(twin, "motion.mu", ActOptions(), 0, lambda line, deadline: sent.append(line), actions.append)
+    actor.on_record(Header(8, 0.005, 2, "r7", 0), time.monotonic())
+    actor.consider({"explained": True, "value": 0.8}, 3, 7.0, None)
+    actor.end_of_lap()
+    change = actor.current()
+    assert change.status == "sent" and any(",SET," in line for line in sent)
+    actor.on_record(Reply(change.seq, "ACK"), time.monotonic())
+    actor.on_record(Reply(change.seq + 1, "GAINS", in_force=change.seq, gains=gains_to_wire(new)), time.monotonic())
+    assert change.status == "in_force" and twin.space.get("control.v_max") == 1.2
+    actor.on_record(Header(8, 0.005, 2, "r7", change.seq), time.monotonic())
+    assert [a["kind"] for a in actions].count("in_force") == 1 and "adopt" not in [a["kind"] for a in actions]

@@ -13,7 +13,7 @@ import logging
 import os
 import threading
 
-from lf_common.files import GENERATOR, jsonl_is_ours, json_safe
+from lf_common.files import GENERATOR, ends_with_newline, json_safe, jsonl_is_ours
 from twin.errors import TwinError
 
 log = logging.getLogger(__name__)
@@ -46,7 +46,7 @@ class Journal:
             if self.file.tell() == 0:
                 self.file.write(_line({"generator": GENERATOR, "kind": ACTIONS_KIND, "log": log_name}))
                 self.lines = 1
-            elif not _ends_with_newline(path):
+            elif not ends_with_newline(path):
                 self.file.write(b"\n")  # a line torn by a crash: ended, so the next one stands alone
                 self.lines += 1
         except OSError as e:
@@ -79,13 +79,6 @@ def _count_lines(path: str) -> int:
     except FileNotFoundError:
         return 0
 
-
-def _ends_with_newline(path: str) -> bool:
-    with open(path, "rb") as f:
-        if f.seek(0, os.SEEK_END) == 0:
-            return True
-        f.seek(-1, os.SEEK_END)
-        return f.read(1) == b"\n"
 
 
 def read_journal(path: str) -> list[tuple[int, dict]]:

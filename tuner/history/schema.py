@@ -23,6 +23,18 @@ import sqlalchemy as sa
 
 metadata = sa.MetaData()
 
+
+def _of_a_run(name: str, *columns: sa.Column) -> sa.Table:
+    """A table of rows that belong to a run of a robot, each with its unique ``source`` key."""
+    return sa.Table(
+        name, metadata,
+        sa.Column("id", sa.Integer, primary_key=True),
+        sa.Column("run_id", sa.Integer, sa.ForeignKey("lf_runs.id"), nullable=False, index=True),
+        sa.Column("robot_id", sa.Integer, sa.ForeignKey("lf_robots.id"), nullable=False, index=True),
+        sa.Column("source", sa.String(512), nullable=False, unique=True),
+        *columns,
+    )
+
 robots = sa.Table(
     "lf_robots", metadata,
     sa.Column("id", sa.Integer, primary_key=True),
@@ -45,12 +57,8 @@ runs = sa.Table(
     sa.Column("result", sa.JSON),
 )
 
-laps = sa.Table(
-    "lf_laps", metadata,
-    sa.Column("id", sa.Integer, primary_key=True),
-    sa.Column("run_id", sa.Integer, sa.ForeignKey("lf_runs.id"), nullable=False, index=True),
-    sa.Column("robot_id", sa.Integer, sa.ForeignKey("lf_robots.id"), nullable=False, index=True),
-    sa.Column("source", sa.String(512), nullable=False, unique=True),
+laps = _of_a_run(
+    "lf_laps",
     sa.Column("lap", sa.Integer, nullable=False),
     sa.Column("time", sa.Float),
     sa.Column("completed", sa.Boolean, nullable=False),
@@ -67,12 +75,8 @@ laps = sa.Table(
     sa.Column("values", sa.JSON),
 )
 
-alignments = sa.Table(
-    "lf_alignments", metadata,
-    sa.Column("id", sa.Integer, primary_key=True),
-    sa.Column("run_id", sa.Integer, sa.ForeignKey("lf_runs.id"), nullable=False, index=True),
-    sa.Column("robot_id", sa.Integer, sa.ForeignKey("lf_robots.id"), nullable=False, index=True),
-    sa.Column("source", sa.String(512), nullable=False, unique=True),
+alignments = _of_a_run(
+    "lf_alignments",
     sa.Column("lap", sa.Integer),
     sa.Column("time", sa.Float),
     sa.Column("address", sa.String(64), nullable=False),
@@ -87,12 +91,8 @@ alignments = sa.Table(
     sa.Column("reason", sa.Text),
 )
 
-gain_changes = sa.Table(
-    "lf_gain_changes", metadata,
-    sa.Column("id", sa.Integer, primary_key=True),
-    sa.Column("run_id", sa.Integer, sa.ForeignKey("lf_runs.id"), nullable=False, index=True),
-    sa.Column("robot_id", sa.Integer, sa.ForeignKey("lf_robots.id"), nullable=False, index=True),
-    sa.Column("source", sa.String(512), nullable=False, unique=True),
+gain_changes = _of_a_run(
+    "lf_gain_changes",
     sa.Column("seq", sa.Integer, nullable=False),
     sa.Column("kind", sa.String(16), nullable=False),
     sa.Column("decided_lap", sa.Integer),
@@ -110,12 +110,8 @@ gain_changes = sa.Table(
     sa.Column("answered_at", sa.Float),
 )
 
-events = sa.Table(
-    "lf_events", metadata,
-    sa.Column("id", sa.Integer, primary_key=True),
-    sa.Column("run_id", sa.Integer, sa.ForeignKey("lf_runs.id"), nullable=False, index=True),
-    sa.Column("robot_id", sa.Integer, sa.ForeignKey("lf_robots.id"), nullable=False, index=True),
-    sa.Column("source", sa.String(512), nullable=False, unique=True),
+events = _of_a_run(
+    "lf_events",
     sa.Column("lap", sa.Integer),
     sa.Column("time", sa.Float),
     sa.Column("kind", sa.String(16), nullable=False),

@@ -141,18 +141,26 @@ class Actor:
         if self.live and not self.asked:
             self.asked = True
             self._send(Command(self._next_seq(), "GET"))  # what it runs on, before its first lap is compared
-        change = self.current()
+        if self._applied(h.gains_seq, "in force from the lap that starts"):
+            return
         if h.gains_seq == self.in_force_seq:
             return
         self.in_force_seq = h.gains_seq
-        if change is not None and h.gains_seq == change.seq and change.status in ("sent", "acked", "silent"):
-            late = change.status == "silent"
-            change.status, change.first_lap = "in_force", None
-            self.twin.update(change.gains)
-            self._act("in_force", change, outcome="in force from the lap that starts"
-                      + (" (its answer was lost, but the robot applied it)" if late else ""))
-        elif h.gains_seq in self.known:
+        if h.gains_seq in self.known:
             self.twin.update(self.known[h.gains_seq])
+
+    def _applied(self, seq: int, how: str) -> bool:
+        """The robot runs gains ``seq`` (a lap header says so, or its answer to GET, whichever the twin reads
+        first): when they are the change on its way, it is in force from now on."""
+        change = self.current()
+        if change is None or seq != change.seq or change.status not in ("sent", "acked", "silent"):
+            return False
+        late = change.status == "silent"
+        change.status, change.first_lap = "in_force", None
+        self.in_force_seq = seq
+        self.twin.update(change.gains)
+        self._act("in_force", change, outcome=how + (" (its answer was lost, but the robot applied it)" if late else ""))
+        return True
 
     def _boot(self, b: Boot) -> None:
         self.asked = False  # a restarted robot: read its gains again
@@ -195,6 +203,8 @@ class Actor:
                       outcome=f"refused ({r.reason}): the robot keeps its gains #{change.previous_seq}")
 
     def _gains_read_back(self, r: Reply) -> None:
+        if self._applied(r.in_force, "in force (the robot's answer to GET says so)"):
+            return
         gains = gains_from_wire(r.gains)
         self.known.setdefault(r.in_force, gains)
         believed = {a: self.twin.space.get(a) for a in GAIN_ADDRESSES}
