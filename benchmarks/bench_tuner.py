@@ -8,9 +8,12 @@
   * robust tuning with the ``--robust`` preset (tuner.search.envelope): wall time (target < 90 s on 2 cores), laps, and
     the completion rate over the envelope's corners on 20 held-out seeds (target 100 %) against the plain gains'
     rate; the price of robustness: the nominal lap of the robust gains against the plain gains'
+  * the robust preset as delivered against the same preset as before issue 26 (``LapObjective(stop_early=False)``:
+    every lap runs to its end, no racing in the line search, every stencil point on every lap), same machine,
+    same physics step: wall and laps ratio, held-out completion, the nominal lap's difference, the same gains
 
   pip install -e '.[bench]'   # cma
-  python benchmarks/bench_tuner.py [--cma-evals 600] [--no-cma] [--json]
+  python benchmarks/bench_tuner.py [--cma-evals 600] [--no-cma] [--robust-only] [--json]
 """
 
 from __future__ import annotations
@@ -33,14 +36,15 @@ from twin.core.digital_twin import DigitalTwin
 HELD_OUT = 20
 
 
-def tune(method, twin: DigitalTwin, envelope: Envelope | None = None, risk: Risk = Risk("mean")) -> dict:
+def tune(method, twin: DigitalTwin, envelope: Envelope | None = None, risk: Risk = Risk("mean"),
+         stop_early: bool = True) -> dict:
     space = SearchSpace(twin.space)
-    objective = LapObjective(twin, space, seed=0, envelope=envelope, risk=risk)
-    t0 = time.perf_counter()
+    objective = LapObjective(twin, space, seed=0, envelope=envelope, risk=risk, stop_early=stop_early)
+    t0, c0 = time.perf_counter(), time.process_time()
     r = method(objective, space.to_unit(space.start(twin.space)), DescentOptions())
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     return {"lap_time_s": objective.best.lap.lap_time_s, "cost_s": objective.best.cost, "laps": objective.laps,
-            "iterations": len(r.iterations), "wall_s": wall, "converged": r.converged,
+            "iterations": len(r.iterations), "wall_s": wall, "cpu_s": cpu, "converged": r.converged,
             "gains": space.assignments(objective.best.x)}
 
 
@@ -66,39 +70,83 @@ def completion(twin: DigitalTwin, gains: dict, envelope: Envelope) -> dict:
     corners = envelope.corners
     laps = run_laps(twin, [{**gains, **c} for c in corners for _ in seeds], seed=[s for _ in corners for s in seeds],
                     keep_traces=False)
-    nominal = run_laps(twin, [gains], seed=0, keep_traces=False)[0]
     by_corner = {", ".join(f"{a}={v:g}" for a, v in c.items()): sum(r.completed for r in laps[i * HELD_OUT:(i + 1) * HELD_OUT])
                  for i, c in enumerate(corners)}
     return {"rate": sum(r.completed for r in laps) / len(laps), "by_corner": by_corner,
-            "nominal_lap_time_s": nominal.lap_time_s if nominal.completed else None}
+            "nominal_lap_time_s": nominal_lap(twin, gains)}
+
+
+def nominal_lap(twin: DigitalTwin, gains: dict) -> float | None:
+    r = run_laps(twin, [gains], seed=0, keep_traces=False)[0]
+    return r.lap_time_s if r.completed else None
+
+
+def compared(robust: dict, before: dict) -> dict:
+    """The robust preset as delivered against as before: ratios of wall time and laps, the nominal laps' change."""
+    now, then = robust["held_out"]["nominal_lap_time_s"], before["nominal_lap_time_s"]
+    return {"robust_speedup_wall": before["wall_s"] / robust["wall_s"], "robust_speedup_cpu": before["cpu_s"] / robust["cpu_s"],
+            "robust_speedup_laps": before["laps"] / robust["laps"],
+            "robust_nominal_lap_change": now / then - 1 if now and then else None,
+            "robust_same_gains": robust["gains"] == before["gains"]}
+
+
+def plain(twin: DigitalTwin, envelope: Envelope, args, robust: dict) -> dict:
+    """Plain tuning, batched and sequential, CMA-ES, and the plain gains' completion over the envelope."""
+    batch = tune(descend, twin)
+    seq = tune(sequential, twin)
+    glob = None if args.no_cma else cma_search(twin, args.cma_evals)
+    plain_held_out = completion(twin, batch["gains"], envelope)
+    return {
+        "batch": batch, "sequential": seq, "cma_es": glob, "plain_held_out": plain_held_out,
+        "ratio_wall_sequential_over_batch": seq["wall_s"] / batch["wall_s"],
+        "batch_over_global_lap_time": batch["cost_s"] / glob["cost_s"] if glob else None,
+        "robust_over_plain_nominal_lap": robust["held_out"]["nominal_lap_time_s"] / plain_held_out["nominal_lap_time_s"],
+    }
+
+
+def print_robust(out: dict, envelope: Envelope, timestep: float) -> None:
+    robust, before = out["robust"], out["robust_before"]
+    print(f"robust preset ({len(envelope.scenarios)} scenarios × {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap), "
+          f"physics step {timestep * 1e3:g} ms, default robot and track")
+    for name, r in (("as delivered", robust), ("as before (laps to the end, no racing)", before)):
+        print(f"  {name}: {r['wall_s']:.1f} s wall (target < 90 s), {r['cpu_s']:.1f} s CPU, {r['laps']} laps, {r['iterations']} iterations, "
+              f"worst lap {r['cost_s']:.4f} s")
+    change = out["robust_nominal_lap_change"]
+    print(f"  ratio: {out['robust_speedup_wall']:.2f}× wall, {out['robust_speedup_cpu']:.2f}× CPU, "
+          f"{out['robust_speedup_laps']:.2f}× laps; same gains: "
+          f"{out['robust_same_gains']}; nominal lap {robust['held_out']['nominal_lap_time_s']:.3f} s, "
+          + (f"{change * 100:+.3f} % against before" if change is not None else "not completed by one of them"))
+    print(f"  held-out completion (as delivered): {robust['held_out']['rate'] * 100:.0f} % over the envelope's corners on "
+          f"{HELD_OUT} seeds (target 100 %)")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cma-evals", type=int, default=600, help="laps the CMA-ES search may use")
     ap.add_argument("--no-cma", action="store_true", help="skip the CMA-ES comparison (about a minute)")
+    ap.add_argument("--robust-only", action="store_true",
+                    help="only the robust preset, as delivered and as before (laps to the end, no racing)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
     logging.disable(logging.WARNING)
     warnings.filterwarnings("ignore")
     twin = DigitalTwin()
     twin.model()
-    batch = tune(descend, twin)
-    seq = tune(sequential, twin)
-    glob = None if args.no_cma else cma_search(twin, args.cma_evals)
     envelope = Envelope.of(ROBUST_AXES, range(ROBUST_SEEDS))
     robust = tune(descend, twin, envelope, Risk.parse(ROBUST_RISK))
     robust["held_out"] = completion(twin, robust["gains"], envelope)
-    plain_held_out = completion(twin, batch["gains"], envelope)
-    out = {
-        "batch": batch, "sequential": seq, "cma_es": glob, "robust": robust, "plain_held_out": plain_held_out,
-        "ratio_wall_sequential_over_batch": seq["wall_s"] / batch["wall_s"],
-        "batch_over_global_lap_time": batch["cost_s"] / glob["cost_s"] if glob else None,
-        "robust_over_plain_nominal_lap": robust["held_out"]["nominal_lap_time_s"] / plain_held_out["nominal_lap_time_s"],
-    }
+    before = tune(descend, twin, envelope, Risk.parse(ROBUST_RISK), stop_early=False)
+    before["nominal_lap_time_s"] = nominal_lap(twin, before["gains"])
+    out = {"robust": robust, "robust_before": before, **compared(robust, before)}
+    if not args.robust_only:
+        out.update(plain(twin, envelope, args, robust))
     if args.json:
         print(json.dumps(out))
         return
+    print_robust(out, envelope, twin.space.get("motion.timestep"))
+    if args.robust_only:
+        return
+    batch, seq, glob = out["batch"], out["sequential"], out["cma_es"]
     print("default robot, default track, from the default gains (13.17 s), seed 0")
     for name, r in (("batched", batch), ("sequential", seq)):
         print(f"  {name:11s}: {r['lap_time_s']:.3f} s after {r['iterations']} iterations, {r['laps']} laps, "
@@ -110,9 +158,7 @@ def main() -> None:
           f"lap time {batch['lap_time_s']:.3f} vs {seq['lap_time_s']:.3f} s")
     if glob:
         print(f"  batched / CMA-ES lap time: {out['batch_over_global_lap_time']:.3f} (target ≤ 1.03)")
-    rh, ph = robust["held_out"], plain_held_out
-    print(f"  robust preset ({len(envelope.scenarios)} scenarios × {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap): "
-          f"{robust['wall_s']:.1f} s wall (target < 90 s), {robust['laps']} laps, {robust['iterations']} iterations")
+    rh, ph = robust["held_out"], out["plain_held_out"]
     print(f"  completed over the envelope's corners on {HELD_OUT} held-out seeds: robust {rh['rate'] * 100:.0f} % "
           f"(target 100 %), plain {ph['rate'] * 100:.0f} %")
     for corner in rh["by_corner"]:

@@ -11,13 +11,26 @@ from typing import Sequence
 
 NOISE_THRESHOLD = 50  # readLine averages calibrated values above this
 LINE_THRESHOLD = 200  # readLine sees the line if any calibrated value exceeds this
+CAL_READS = 10  # readings per calibration call (LF_CAL_READS; Pololu's QTRSensors::calibrate)
 
 
-def calibrate_update(cal_min: list[int], cal_max: list[int], raw: Sequence[int]) -> None:
-    """Widen each sensor's [min, max] with one reading (in place)."""
-    for i, r in enumerate(raw):
-        cal_max[i] = max(cal_max[i], int(r))
-        cal_min[i] = min(cal_min[i], int(r))
+def calibrate_call(cal_min: list[int], cal_max: list[int], reads: Sequence[Sequence[int]]) -> None:
+    """One call of Pololu's ``calibrate`` (libpololu-avr, PololuQTRSensors.cpp, ``calibrateOnOrOff``: ten reads per
+    call, :data:`CAL_READS`), in place: per sensor the calibrated maximum rises to the call's smallest reading and
+    the calibrated minimum falls to its largest, so a single noise spike never widens the range."""
+    for i in range(len(cal_min)):
+        column = [int(r[i]) for r in reads]
+        cal_max[i] = max(cal_max[i], min(column))
+        cal_min[i] = min(cal_min[i], max(column))
+
+
+def calibrate_update(cal_min: list[int], cal_max: list[int], call: list[list[int]], raw: Sequence[int]) -> None:
+    """The firmware's calibration, one reading per loop iteration (``lf_calibrate_update``): the reading joins the call
+    under way (``call``, in place); the :data:`CAL_READS`-th completes it (:func:`calibrate_call`) and starts the next."""
+    call.append([int(r) for r in raw])
+    if len(call) == CAL_READS:
+        calibrate_call(cal_min, cal_max, call)
+        call.clear()
 
 
 def read_calibrated(raw: Sequence[int], cal_min: Sequence[int], cal_max: Sequence[int]) -> list[int]:

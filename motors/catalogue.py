@@ -8,7 +8,8 @@ pages as quoted by third-party copies (this machine cannot reach pololu.com), so
 Left out: LP 10:1 (its printed stall torque × no-load speed exceeds U × I_stall, which no DC motor can do; the
 datasheet row has no column header there), and rows whose speed, stall torque or stall current were not found
 (HP 10:1, 75:1, 150:1; MP 10:1, 150:1; HPCB 100:1). A missing no-load current is None (it is informative only).
-The 15:1 HPCB row is Pololu's own 3pi+ 32U4 User's Guide (the Hyper Edition's motor), read here.
+The 15:1 HPCB row is Pololu's own 3pi+ 32U4 User's Guide (the Hyper Edition's motor), read here; ``pololu-3pi-30``
+is the original 3pi's motor as the 3pi Robot User's Guide tabulates it (at its 9.25 V motor supply).
 
 Inductance and rotor inertia are not published: every entry uses the default motor's assumptions (0.5 mH,
 2e-9 kg·m², typical of 10 mm-class brushed motors), as :data:`POLOLU_MP_6V_30_1` does.
@@ -19,6 +20,7 @@ from __future__ import annotations
 from motors.datasheet import POLOLU_MP_6V_30_1, RPM, Datasheet
 
 KG_MM = 9.80665e-3  # [N·m] per [kg·mm]
+OZ_IN = 0.00706155183333  # [N·m] per [oz·in]
 
 
 def _pololu(gear: float, rpm: float, no_load_a: float | None, stall_kg_mm: float, stall_a: float, source: str) -> Datasheet:
@@ -45,6 +47,14 @@ CATALOGUE: dict[str, Datasheet] = {
     "pololu-hpcb-6v-75": _pololu(75.81, 430, 0.15, 11, 1.5, "HPCB 6V 75:1 (#3074); https://www.pololu.com/product/3074/specs, as quoted by a third-party copy (not checked against pololu.com here)"),
     # the exact ratio of Pololu's "15:1" is not on that page: 15 nominal (only the reflected rotor inertia uses it)
     "pololu-hpcb-6v-15": _pololu(15.0, 2100, 0.1, 2.5, 1.5, "HPCB 6V 15:1, the 3pi+ 32U4 Hyper Edition's motor; Pololu 3pi+ 32U4 User's Guide, section 5.3 Motors (https://www.pololu.com/docs/0J83/5.3): 2100 RPM, 100 mA; 0.25 kg·cm, 1.5 A at 6 V"),
+    # the original 3pi's own motors, as its guide tabulates them; the 3pi drives them from a regulated 9.25 V
+    "pololu-3pi-30": Datasheet(voltage=9.25, stall_torque=6.0 * OZ_IN, stall_current=0.54, no_load_speed=700 * RPM,
+                               no_load_current=0.06, gear=30.0, inductance=POLOLU_MP_6V_30_1.inductance,
+                               rotor_inertia=POLOLU_MP_6V_30_1.rotor_inertia,
+                               source="the original 3pi's 30:1 micro metal gearmotors; Pololu 3pi Robot User's Guide, "
+                               "section 5.c Motors and Gearboxes (https://www.pololu.com/docs/0J21/5.c): 700 rpm and "
+                               "60 mA free-running, 6 oz·in and 540 mA stall; read as figures at the 3pi's regulated "
+                               "9.25 V motor supply (section 1: motors at a regulated 9.25 V, up to 100 cm/s)"),
 }
 
 # Pololu's 3pi+ 32U4 editions differ in their motors (3pi+ 32U4 User's Guide, section 5.3,

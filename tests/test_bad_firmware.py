@@ -17,7 +17,7 @@ ROWS = [
     # the ELF fits, its flash image does not: avr-objcopy's failure was an internal error
     ("firmware --out-dir {free24k}/fw", 2, ["{free24k}/fw", "No space left on device"]),
     ("firmware --out-dir {full}/fw", 2, ["{full}/fw", "No space left on device"]),
-    ("lap --firmware {user.json}", 2, ["{user.json}", "not a readable ELF"]),
+    ("lap --firmware {user.json}", 2, ["{user.json}", "not an ELF or Intel HEX file"]),
     ("lap --firmware {missing_dir}/robot.elf", 2, ["no such firmware file"]),
 ]
 

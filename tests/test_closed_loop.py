@@ -122,6 +122,17 @@ def test_batched_laps_equal_laps_run_one_by_one(twin):
 
 
 @pytest.mark.quick
+def test_a_lap_does_not_depend_on_the_turns_of_the_laps_beside_it(twin):
+    """Laps whose calibration turns differ in length (physics step, sweep) share a batch: each turns exactly as long
+    as it would alone (extra idle ticks would draw sensor noise and shift its lap)."""
+    variants = [{"motion.timestep": 0.0025}, {"control.cal_sweep": 2.0}, {"motion.timestep": 0.0005}]
+    together = run_laps(twin, variants, seed=3, keep_traces=False, reuse_calibration=False)
+    for v, batched in zip(variants, together):
+        alone = run_laps(twin, [v], seed=3, keep_traces=False, reuse_calibration=False)[0]
+        assert alone.summary() == batched.summary(), v
+
+
+@pytest.mark.quick
 def test_variants_never_write_to_the_twin():
     """A variant is derived from a mapping of values: the twin's values and model fields are never touched,
     not even for the duration of the batch (another thread may read them)."""
@@ -345,3 +356,22 @@ def test_a_supply_voltage_varied_in_a_batch_is_the_one_simulated():
     alone = run_laps(low, [{}], seed=0)[0]
     assert batched[1].summary() == alone.summary()
     assert batched[1].lap_time_s > batched[0].lap_time_s * 1.1  # 20 % less voltage: clearly slower
+
+
+RECKLESS = {"control.v_max": 1.2, "control.kb": 1.0, "control.kp": 20.0, "control.ki": 0.0, "control.kd": 0.3}
+
+
+def test_stopping_decided_laps_changes_no_result(twin):
+    """Laps whose decision is close (too fast for their steering at μ 0.6: some seeds finish, others circle until
+    the timeout) end the tick they are decided with exactly the results of laps stepped to the end of their chunk;
+    a deadline stops a lap undecided past it, and one past the lap's end changes nothing."""
+    laps = [{**RECKLESS, "motion.mu": 0.6}] * 6
+    stopped = run_laps(twin, laps, seed=list(range(6)), keep_traces=False)
+    to_the_end = run_laps(twin, laps, seed=list(range(6)), keep_traces=False, stop_decided=False)
+    assert 0 < sum(r.completed for r in stopped) < len(laps)  # the decision is close: the seeds split it
+    assert [r.summary() for r in stopped] == [r.summary() for r in to_the_end]  # bit for bit
+    done = next(i for i, r in enumerate(stopped) if r.completed)
+    t = stopped[done].lap_time_s
+    early, late = run_laps(twin, [laps[done]] * 2, seed=done, keep_traces=False, deadline_s=[t / 2, t + 1.0])
+    assert early.failure == "stopped" and t / 2 < early.simulated_s < t and not early.completed
+    assert late.summary() == stopped[done].summary()

@@ -40,7 +40,7 @@ def test_small_study_writes_charts_table_and_gains(tmp_path, capsys):
     summary = json.loads(capsys.readouterr().out)
     designs = summary["designs"]
     assert [d["ok"] for d in designs] == [True, False, True, False]
-    assert "caster_radius" in designs[1]["error"]  # a design that cannot be built is reported, the others go on
+    assert "cad.R" in designs[1]["error"]  # a design that cannot be built is reported, the others go on
     for name in ("lap_times.png", "pareto.png", "designs.csv", "designs.json"):
         assert (out / name).stat().st_size > 1000 or name == "designs.csv"
     assert (out / "lap_times.png").read_bytes()[:4] == b"\x89PNG"
@@ -55,7 +55,7 @@ def test_small_study_writes_charts_table_and_gains(tmp_path, capsys):
             assert int(row["laps_completed"]) == d["laps_completed"]
             assert {g: float(row[g]) for g in d["gains"]} == d["gains"]
         else:
-            assert row["median_lap_time_s"] == "" and "caster_radius" in row["error"]
+            assert row["median_lap_time_s"] == "" and "cad.R" in row["error"]
     # each design's reported laps are its tuned gains raced on noise seeds 1…laps: race them again through the library
     saved = json.loads((out / "designs.json").read_text())["designs"]
     for d, s in zip(designs, saved):

@@ -11,7 +11,7 @@ import subprocess
 
 import pytest
 
-from line_sensor.processing import read_calibrated, read_line, line_angle
+from line_sensor.processing import calibrate_update, read_calibrated, read_line, line_angle
 from twin.model import control as ref
 from twin.core.native import FwState, lib, params_to_c
 
@@ -105,6 +105,10 @@ def c_state(count: int, timeout: int) -> FwState:
 
 def assert_same(c: FwState, py: ref.FirmwareState, count: int) -> None:
     assert list(c.cal_min[:count]) == py.cal_min and list(c.cal_max[:count]) == py.cal_max
+    assert c.call_reads == len(py.call)
+    if py.call:  # the calibration call under way: C keeps its extremes, Python its readings
+        assert list(c.call_min[:count]) == [min(col) for col in zip(*py.call)]
+        assert list(c.call_max[:count]) == [max(col) for col in zip(*py.call)]
     assert list(c.value[:count]) == py.value
     assert (c.position, c.last_position, bool(c.line_seen), c.mode, c.tick) == (
         py.position, py.last_position, py.line_seen, py.mode, py.tick)
@@ -215,3 +219,56 @@ def test_c_wire_lines_equal_the_python_encoding():
     assert buf.raw[:n].decode() == encode(Event(7.31, "LAP", lap_time_s=7.31))
     n = lib.lf_wire_start(buf, ctypes.c_uint32(0))
     assert buf.raw[:n].decode() == encode(Event(0.0, "START"))
+
+
+def pololu_calibrate(cal_min: list[int], cal_max: list[int], reads: list[list[int]]) -> None:
+    """libpololu-avr's PololuQTRSensors::calibrateOnOrOff as its source states it (src/PololuQTRSensors/
+    PololuQTRSensors.cpp): ten reads; per sensor the largest and smallest of them; then "if (min_sensor_values[i] >
+    (*calibratedMaximum)[i]) (*calibratedMaximum)[i] = min_sensor_values[i]" and "if (max_sensor_values[i] <
+    (*calibratedMinimum)[i]) (*calibratedMinimum)[i] = max_sensor_values[i]"."""
+    max_values, min_values = [0] * len(cal_min), [0] * len(cal_min)
+    for j in range(10):
+        for i, v in enumerate(reads[j]):
+            if j == 0 or max_values[i] < v:
+                max_values[i] = v
+            if j == 0 or min_values[i] > v:
+                min_values[i] = v
+    for i in range(len(cal_min)):
+        if min_values[i] > cal_max[i]:
+            cal_max[i] = min_values[i]
+        if max_values[i] < cal_min[i]:
+            cal_min[i] = max_values[i]
+
+
+@pytest.mark.parametrize("count", [5, 8])
+def test_calibration_follows_pololus_rule_ten_reads_per_call(count):
+    """The C firmware (one reading per tick) and its Python reference against Pololu's rule, call by call."""
+    rng = random.Random(10 + count)
+    c, py = c_state(count, 2500), ref.FirmwareState.uncalibrated(count, 2500)
+    pololu_min, pololu_max = [2500] * count, [0] * count
+    raw = (ctypes.c_uint16 * 16)()
+    for call in range(40):
+        reads = [[rng.choice([rng.randint(80, 300), rng.randint(1500, 2500), rng.randint(0, 2500)])
+                  for _ in range(count)] for _ in range(10)]
+        for read in reads:
+            raw[:count] = read
+            lib.lf_calibrate_update(ctypes.byref(c), raw, count)
+            calibrate_update(py.cal_min, py.cal_max, py.call, read)
+        pololu_calibrate(pololu_min, pololu_max, reads)
+        assert list(c.cal_min[:count]) == pololu_min == py.cal_min, call
+        assert list(c.cal_max[:count]) == pololu_max == py.cal_max, call
+        assert c.call_reads == 0 and py.call == []
+
+
+def test_a_noise_spike_does_not_widen_the_calibrated_range():
+    c = c_state(1, 2500)
+    raw = (ctypes.c_uint16 * 16)()
+    for k in range(30):  # three calls over white (~200 us), a black spike (2400 us) in the second
+        raw[0] = 2400 if k == 13 else 200 + k % 3
+        lib.lf_calibrate_update(ctypes.byref(c), raw, 1)
+    assert c.cal_max[0] == 200 and c.cal_min[0] == 202  # the spike never became the maximum
+    raw[0] = 2000
+    for _ in range(5):  # a call cut short is not counted
+        lib.lf_calibrate_update(ctypes.byref(c), raw, 1)
+    lib.lf_reset(ctypes.byref(c), ref.IDLE)
+    assert c.cal_max[0] == 200 and c.call_reads == 0

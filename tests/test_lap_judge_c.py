@@ -19,23 +19,8 @@ COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED = (Outcome.COMPLETED.value, O
                                                       Outcome.TIMEOUT.value, Outcome.DIVERGED.value)
 
 
-class Limits(ctypes.Structure):
-    _fields_ = [(n, c_double) for n in ("max_cross_track_m", "max_progress_jump_m", "max_line_lost_s", "timeout_s")]
-
-
-class Judge(ctypes.Structure):
-    """``lf_judge``."""
-
-    _fields_ = [("limits", Limits), ("length_m", c_double), ("status", c_int32), ("started", c_int32),
-                ("records", c_int64)] + [(n, c_double) for n in (
-                    "u_last", "s_last", "t_seen", "prev_t", "prev_u", "prev_energy", "abs_sum", "abs_max", "end_t",
-                    "end_u", "end_energy")]
-
-
+Limits, Judge = core.LapLimitsC, core.JudgeC
 lib = core.lib
-lib.lf_judge_start.argtypes = [ctypes.POINTER(Judge), c_double, ctypes.POINTER(Limits)]
-lib.lf_judge_feed.argtypes = [ctypes.POINTER(Judge), ctypes.POINTER(c_double)]
-lib.lf_judge_feed.restype = c_int32
 
 
 @pytest.fixture(scope="module")

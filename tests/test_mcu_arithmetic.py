@@ -26,7 +26,9 @@ N = 2000
 
 # the selftest program's structures as avr-gcc lays them out (no padding, lf_real = float)
 PARAMS = struct.Struct("<i15fi")
-STATE = struct.Struct("<16H16H16Hiiiii7f")  # cal_min, cal_max, value, position, last_position, line_seen, mode, tick, 7 reals
+# cal_min, cal_max, value, position, last_position, line_seen, mode, tick, 7 reals, call_min, call_max, call_reads
+STATE = struct.Struct("<16H16H16Hiiiii7f16H16Hi")
+STATE_ITEMS = 48 + 5 + 7 + 33
 IN = struct.Struct("<" + PARAMS.format[1:] + STATE.format[1:] + "16Hi2fIiii")
 OUT = struct.Struct("<" + STATE.format[1:] + "16Hi2fIh96s")
 PARAM_FIELDS = ("pitch_m", "sensor_distance_m", "v_max", "k_b", "k_p", "k_i", "k_d", "dt_s", "wheel_radius_m",
@@ -77,7 +79,8 @@ def pack_params(p: ref.ControlParams) -> bytes:
 
 def pack_state(s: FwState) -> bytes:
     return STATE.pack(*s.cal_min, *s.cal_max, *s.value, s.position, s.last_position, s.line_seen, s.mode, s.tick,
-                      s.e, s.e_prev, s.integral, s.v, s.omega, s.duty_left, s.duty_right)
+                      s.e, s.e_prev, s.integral, s.v, s.omega, s.duty_left, s.duty_right, *s.call_min, *s.call_max,
+                      s.call_reads)
 
 
 def run(command: int, p: ref.ControlParams, state: FwState | None = None, raw=(0,) * 16, position=0, a=0.0, b=0.0,
@@ -91,8 +94,9 @@ def run(command: int, p: ref.ControlParams, state: FwState | None = None, raw=(0
     out = OUT.unpack(MCU.peek("st_out", OUT.size))
     st = dict(zip(("position", "last_position", "line_seen", "mode", "tick", "e", "e_prev", "integral", "v", "omega",
                    "duty_left", "duty_right"), out[48:60]))
-    return {"state": st, "cal_min": out[:16], "values": out[60:76], "position": out[76], "a": out[77], "b": out[78],
-            "ticks": out[79], "length": out[80], "text": out[81]}
+    n = STATE_ITEMS
+    return {"state": st, "cal_min": out[:16], "values": out[n:n + 16], "position": out[n + 16], "a": out[n + 17],
+            "b": out[n + 18], "ticks": out[n + 19], "length": out[n + 20], "text": out[n + 21]}
 
 
 def test_eq8_read_calibrated_bit_for_bit():

@@ -193,14 +193,12 @@ def test_lap_json_reports_the_mcu(pil_ready):
 def test_bad_firmware_files_are_one_line_and_exit_2(pil_ready, tmp_path):
     src = tmp_path / "main.c"
     src.write_text("int main(void) { return 0; }\n")
-    u4, plain = tmp_path / "u4.elf", tmp_path / "plain.elf"
+    u4 = tmp_path / "u4.elf"
     subprocess.run(["avr-gcc", "-mmcu=atmega32u4", "-o", str(u4), str(src)], check=True)
-    subprocess.run(["avr-gcc", "-mmcu=atmega328p", "-o", str(plain), str(src)], check=True)
     text = tmp_path / "notes.txt"
     text.write_text("not a program")
     cases = [(tmp_path / "missing.elf", "no such firmware file"), (sys.executable, "not an AVR"),
-             (u4, "built for the atmega32u4, not the atmega328p"), (plain, "has no fw_state"),
-             (text, "not a readable ELF file")]
+             (u4, "built for the atmega32u4, not the atmega328p"), (text, "not an ELF or Intel HEX file")]
     for path, needle in cases:
         done = cli("lap", "--firmware", str(path))
         assert done.returncode == 2 and done.stderr.count("\n") == 1 and needle in done.stderr, (path, done.stderr)
@@ -292,7 +290,7 @@ def test_an_mcu_attached_before_the_physics_stepped_reads_a_dark_floor(pil_ready
     data.site_xmat[:] = 0.0  # as before any mj_step1 or mj_forward
     with Mcu(fw.check_elf(fw.build("robot"), fw.TRACE_SYMBOLS)) as mcu:
         mcu.eeprom(fw.config_image(lap.params, lap.sensor.timeout_us, 2))
-        sim = pil._place(model, data, default_twin, lap, 0)
+        sim = pil.place_robot(model, data, default_twin, lap, 0)
         data.site_xmat[:] = 0.0
         mcu.attach(model, data, sim, 1.0)
         assert mcu.run_cycles(2_000_000) == 0  # 0.1 s: about 20 reads

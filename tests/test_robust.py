@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tuner.search.envelope import Envelope, Risk, held_out_seeds
+from tuner.search.gradient import DescentOptions, descend
 from tuner.search.objective import LapObjective, lap_cost
 from tuner.search.space import SearchSpace
 from twin.cli import tune
@@ -52,6 +53,25 @@ def test_robust_batched_laps_equal_the_same_laps_run_one_by_one():
                  for sc in envelope.scenarios for s in envelope.seeds]
         assert [r.summary() for r in objective.at(zi).laps] == [r.summary() for r in alone]  # bit for bit
         assert c == max(lap_cost(r) for r in alone)
+
+
+def test_fewer_laps_give_the_same_robust_descent():
+    """The worst lap over μ 0.6 (near the grip limit) and 0.9 on two seeds: racing the line search's candidates,
+    skipping a stencil's far-from-deciding laps and stopping decided laps take every step the laps-to-the-end search
+    takes, to the same point and cost bit for bit, with fewer laps."""
+    twin = DigitalTwin()
+    space = SearchSpace(twin.space)
+    envelope = Envelope.of({"motion.mu": (0.6, 0.9), "motor.supply_voltage": (6.0,)}, [0, 1])
+    runs = []
+    for stop_early in (True, False):
+        objective = LapObjective(twin, space, envelope=envelope, risk=Risk.parse("worst"), stop_early=stop_early)
+        r = descend(objective, space.to_unit(space.start(twin.space)), DescentOptions(max_iter=3))
+        runs.append((r, objective))
+    (fast, f), (full, g) = runs
+    assert [(i.z.tobytes(), i.cost) for i in fast.iterations] == [(i.z.tobytes(), i.cost) for i in full.iterations]
+    assert np.array_equal(f.best.x, g.best.x) and f.best.cost == g.best.cost
+    assert [r.summary() for r in f.best.laps] == [r.summary() for r in g.best.laps]
+    assert f.laps < g.laps
 
 
 def test_robust_gains_finish_the_whole_envelope_on_held_out_seeds(capsys):

@@ -89,3 +89,23 @@ def test_cli_record_writes_a_readable_run(tmp_path, capsys):
     tel = read_telemetry(str(out))
     assert tel.header["track"] == "oval" and tel.lap_time_s is not None
     assert json.loads(out.read_text().splitlines()[0])["gains"]["control.v_max"] == 0.6
+
+
+def test_grip_the_run_never_tests_gets_no_interval_but_the_values_that_fit(tmp_path, capsys):
+    """Default gains on the default track, robot seed 3, hidden μ 0.7 and 1.1: the robot never slips, so the two runs
+    are the same. μ gets no interval (null in the JSON), and the values that fit as well include both hidden
+    values and reach the upper bound of μ's physical range, 2."""
+    paths: dict[str, str] = {}  # one alignment per distinct run
+    hidden: dict[str, list[float]] = {}
+    for mu in (0.7, 1.1):
+        path = tmp_path / f"run-{mu}.jsonl"
+        assert main(["record", "--set", f"motion.mu={mu}", "--seed", "3", "--out", str(path)]) == 0
+        paths.setdefault(path.read_text(), str(path))
+        hidden.setdefault(path.read_text(), []).append(mu)
+    capsys.readouterr()
+    for text, path in paths.items():
+        assert main(["align", "--telemetry", path, "--json"]) == 1  # exit 1: μ is not identified
+        (mu,) = [p for p in json.loads(capsys.readouterr().out)["parameters"] if p["address"] == "motion.mu"]
+        assert mu["ci95"] is None and not mu["identifiable"], mu
+        lo, hi = mu["consistent"]
+        assert all(lo <= h <= hi for h in hidden[text]) and hi == 2.0, (hidden[text], mu["consistent"])

@@ -14,17 +14,19 @@ has a lap event. Each parameter is searched as a ratio to its current value.
    takes a *vectorised* residual, so each finite-difference Jacobian is one batch of n laps on all cores
    (scipy's would run them one by one), and it keeps box bounds. Finite-difference step: 1 % (sensor
    readings are integers, so much smaller steps see steps, not slopes).
-3. **Uncertainty**: at the grip limit a lap is chaotic, so the noise moves its traces as much as a parameter
-   does. The fit is repeated with ``REFITS`` other twin noise seeds (one stacked least-squares problem, so each
-   Jacobian is one batch), warm-started at the solution; the estimate is the mean of the 1 + ``REFITS`` fits and
-   its spread is how far noise alone moves it. The robot's run is one more noise realisation, so the 95 %
-   interval is mean ± t₀.₉₇₅,ₖ₋₁·√((1 + 1/k)σ²_noise + σ²_J) (k = 1 + REFITS), with σ_J from s²(JᵀJ)⁻¹ and s²
-   inflated by (1 + ρ₁)/(1 − ρ₁) for residuals correlated in time (ρ₁: their lag-1 autocorrelation).
-4. **Profile** (one batch, with ``NOISE_SEEDS`` other seeds at the solution): each parameter moved ``PIN`` either way and to each bound, the others at the
-   solution. It is **pinned** only if the misfit rises, on each side, by more than noise alone moves it (the
-   spread of the other seeds' misfits); a parameter that fits about as well up to a bound (μ above the grip
-   the robot needs) or within ±``PIN`` is reported as not identifiable, with those numbers as the evidence.
-   "Identified" needs both: pinned, and a 95 % interval narrower than ±``IDENTIFIABLE_REL``.
+3. **Noise** (one batch): the misfit at the solution with ``NOISE_SEEDS`` other twin noise seeds; its largest
+   change is how much noise alone moves the misfit. At the grip limit a lap is chaotic, so the noise moves its
+   traces as much as a parameter does. The fit is also repeated with ``REFITS`` other seeds (one stacked
+   least-squares problem, so each Jacobian is one batch), warm-started at the solution; the estimate is the
+   mean of the 1 + ``REFITS`` fits and their spread is how far noise alone moves it. Only where step 4's scan
+   leaves some parameter that could be identified: otherwise the estimate is the fit itself.
+4. **What the run says about each parameter** (:mod:`tuner.align.uncertainty`): a profile scan over the search
+   range gives the *consistent set*, every value that fits as well as the best fit given that noise; a
+   parameter is identified only where that set is narrow and inside the range, and only then gets a 95 %
+   interval (the hull of the set and the local interval from the refits and the Jacobian). Otherwise the
+   result says so and gives the set ("fits as well anywhere in [a, b]").
+5. **Wrong basin**: a fit whose traces differ from the run's by more than ``NOISE_FACTOR`` times what two twin
+   runs differ by is not the run, and nothing in it is called identified.
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ from twin.core.lap import LapResult
 from twin.model.space import ChangeCost
 from twin.telemetry.jsonl import Telemetry
 from tuner.align.lap_time import PHYSICAL_RANGE, align_lap_time
+from tuner.align.uncertainty import MORE_SEEDS, SCAN_SEEDS, FittedParameter, fitted_parameters, profile_scan
 from tuner.search.space import TunerError
 
 GRID = 5  # grid points per parameter (7 for one or two parameters: GRID_SMALL)
@@ -56,27 +59,12 @@ FD_STEP = 0.01
 WHEEL_SCALE = 10.0  # [rad/s] per unit residual
 LAP_SCALE = 0.02  # [s] per unit residual
 FAIL_PENALTY_S = 5.0
-IDENTIFIABLE_REL = 0.25
-PROFILE_TOLERANCE = 0.05  # relative increase of the squared residual: below it, "fits about as well"
 MAX_WHEEL_ERROR = 0.2  # a fit whose wheel speeds are further off than this fraction of their size is not the run
 MAX_LAP_ERROR = 0.01  # nor one whose lap time is further off than this
 NOISE_FACTOR = 3.0  # nor one further off than this many times two twin runs differ by noise alone
 MIN_NOISE_RMS = 0.2  # [rad/s] below this, noise is as small as encoder resolution makes no difference
 NOISE_SEEDS = 6  # other twin seeds at the solution: how much noise alone moves the misfit
 REFITS = 3  # the fit repeated with this many other twin seeds: how much noise alone moves the estimate
-PIN = 0.25  # profile step, as a fraction of the value
-PIN_MARGIN = 2.0  # pinned: the misfit rises by more than this many times what another noise seed alone changes
-T_975 = {2: 12.71, 3: 4.303, 4: 3.182, 5: 2.776, 6: 2.571, 7: 2.447, 8: 2.365, 9: 2.306, 10: 2.262}  # t(0.975, K − 1)
-
-
-@dataclasses.dataclass(frozen=True)
-class FittedParameter:
-    address: str
-    value: float
-    stderr: float
-    ci95: tuple[float, float]
-    identifiable: bool
-    note: str
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,38 +184,37 @@ def align_telemetry(twin: DigitalTwin, tel: Telemetry, addresses: Sequence[str],
     runs = [minimize.least_squares(s0, f, bounds=[lo, hi], eps=FD_STEP, max_iter=max_iter, verbose=0, **LM_OPTIONS) for s0 in starts]
     finals = f(np.column_stack([x for x, _ in runs]))
     x, log = runs[int(np.argmin(np.sum(finals * finals, axis=0)))]
-    # 3. the Jacobian at the solution: one batch
+    # the Jacobian at the solution: one batch
     steps = np.where(x + FD_STEP * x <= hi, FD_STEP * x, -FD_STEP * x)
     R = f(np.column_stack([x, x[:, None] + np.diag(steps)]))
     r0 = R[:, 0]
     J = (R[:, 1:] - r0[:, None]) / steps
-    m, n = len(r0), len(x)
     sse = float(r0 @ r0)
-    # 3.-4. other noise seeds at the solution, and the profile (±PIN, bounds), in one batch
-    moved = []
-    for i in range(n):
-        for b in (lo[i], max(lo[i], x[i] * (1 - PIN)), min(hi[i], x[i] * (1 + PIN)), hi[i]):
-            p = x.copy()
-            p[i] = b
-            moved.append(p)
+    # 3. other noise seeds at the solution (one batch): how much noise alone moves the misfit
     noise_seeds = [seed + 1 + j for j in range(NOISE_SEEDS)]
-    both = f(np.column_stack([np.tile(x[:, None], NOISE_SEEDS), np.array(moved).T]),
-             seeds=noise_seeds + [seed] * len(moved))
-    Rn, P = both[:, :NOISE_SEEDS], both[:, NOISE_SEEDS:]
+    Rn = f(np.tile(x[:, None], NOISE_SEEDS), seeds=noise_seeds)
     noise_sse = np.sum(Rn * Rn, axis=0)
-    noise_spread = float(np.max(np.abs(noise_sse - sse)))  # how much noise alone moves the misfit
-    profile = np.sum(P * P, axis=0).reshape(n, 4)  # lower bound, −PIN, +PIN, upper bound
-    estimates = np.vstack([x, _refits(f, x, lo, hi, seed, max_iter)])  # (1 + REFITS, n)
-    fitted, corr = _uncertainty(addresses, nominal, x, lo, hi, J, r0, estimates, sse, noise_spread, profile)
+    noise_spread = float(np.max(np.abs(noise_sse - sse)))
+    # 4. each parameter's consistent set (profile scan over SCAN_SEEDS twin seeds, and its edges) and verdicts,
+    # see tuner.align.uncertainty
+    profiles, floor = profile_scan(lambda X, seeds: np.sum(f(X, seeds=seeds) ** 2, axis=0), x, lo, hi, J,
+                                   np.concatenate([[sse], noise_sse]), noise_spread,
+                                   [seed + j for j in range(SCAN_SEEDS)],
+                                   [seed + j for j in range(SCAN_SEEDS, SCAN_SEEDS + MORE_SEEDS)])
+    # the refits only matter for an interval: skipped when the scan leaves nothing that could be identified
+    pinned = any(p.pinned(x[i], floor) for i, p in enumerate(profiles))
+    estimates = np.vstack([x, _refits(f, x, lo, hi, seed, max_iter)]) if pinned else x[None, :]  # (1 + REFITS, n)
+    fitted, corr = fitted_parameters(addresses, nominal, x, J, r0, estimates, noise_spread, profiles, floor)
     best = f.laps_for(x[:, None])[0]
     k = 2 * len(tel.t)
     rms = float(np.sqrt(np.mean((r0[:k] / f.weight * WHEEL_SCALE) ** 2)))
     # how far two laps of the twin at the solution differ when only the noise seed does
     twin_rms = float(np.median(np.sqrt(np.mean(((Rn[:k] - r0[:k, None]) / f.weight * WHEEL_SCALE) ** 2, axis=0))))
     misfit = _does_not_reproduce(best, tel, rms, twin_rms)
-    if misfit:  # a wrong basin: nothing it found is identified, whatever the local curvature says
-        fitted = [dataclasses.replace(p, identifiable=False, note=f"{misfit}: not identified (the fit itself fails)")
-                  for p in fitted]
+    if misfit:  # 5. a wrong basin: nothing it found is identified, whatever the local curvature says
+        fitted = [dataclasses.replace(p, identifiable=False, ci95=None, note=(
+            f"{misfit}: not identified (the fit itself fails); near it, fits as well anywhere in "
+            f"[{p.consistent[0]:.4g}, {p.consistent[1]:.4g}]")) for p in fitted]
     return TraceAlignment(tuple(fitted), rms, best.lap_time_s if best.completed else None, tel.lap_time_s, len(log),
                           f.laps, corr, best)
 
@@ -267,55 +254,3 @@ def _does_not_reproduce(lap: LapResult, tel: Telemetry, rms: float, twin_rms: fl
         if abs(lap.lap_time_s - tel.lap_time_s) > MAX_LAP_ERROR * tel.lap_time_s:
             return f"the fitted lap takes {lap.lap_time_s:.3f} s against the run's {tel.lap_time_s:.3f} s"
     return None
-
-
-def _uncertainty(addresses, nominal, x, lo, hi, J, r0, estimates, sse, noise_spread, profile):
-    """Intervals from the refits' spread and the Jacobian, and the profile's verdicts."""
-    n, m, k = len(x), len(r0), len(estimates)
-    scale = np.linalg.norm(J, axis=0)
-    live = [i for i in range(n) if scale[i] > 1e-6 * max(scale.max(), 1e-300)]
-    cov = np.full((n, n), np.nan)
-    if live:
-        JtJ = J[:, live].T @ J[:, live]
-        if np.linalg.cond(JtJ) < 1e12:
-            # residuals along a trace are correlated in time: m of them carry only about m·(1 − ρ₁)/(1 + ρ₁)
-            # independent ones (ρ₁: lag-1 autocorrelation), so s² is inflated by m / that
-            rho = float(np.corrcoef(r0[:-1], r0[1:])[0, 1]) if m > 2 and np.std(r0) > 0 else 0.0
-            inflation = (1 + max(rho, 0.0)) / max(1 - max(rho, 0.0), 1e-3)
-            cov[np.ix_(live, live)] = inflation * sse / max(1, m - n) * np.linalg.inv(JtJ)
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    corr = (cov / np.outer(sd, sd)).tolist()
-    centre = estimates.mean(axis=0)  # the twin's own noise averaged out over its seeds
-    noise_sd = estimates.std(axis=0, ddof=1)
-    t = T_975.get(k, 1.96)
-    floor = sse + PIN_MARGIN * max(noise_spread, PROFILE_TOLERANCE * sse)  # clearly more than noise alone
-    fitted = []
-    for i, a in enumerate(addresses):
-        value = float(centre[i] * nominal[i])
-        if not np.isfinite(cov[i, i]):
-            fitted.append(FittedParameter(a, value, math.inf, (math.nan, math.nan), False,
-                                          "the traces do not change with it here: not identifiable from this run"))
-            continue
-        # the robot's run is one more noise realisation than the k the estimates average: (1 + 1/k)
-        se = float(np.sqrt((1 + 1 / k) * noise_sd[i] ** 2 + sd[i] ** 2) * nominal[i])
-        ci = (value - t * se, value + t * se)
-        partner = [f"{addresses[j]} (ρ = {corr[i][j]:+.2f})" for j in range(n)
-                   if j != i and np.isfinite(corr[i][j]) and abs(corr[i][j]) > 0.9]
-        flat = [f"{'lower' if j == 0 else 'upper'} bound {b * nominal[i]:.4g}" for j, b in ((0, lo[i]), (3, hi[i]))
-                if profile[i][j] < floor]
-        sides = [(profile[i][j], name) for j, name, b in ((1, "−", lo[i]), (2, "+", hi[i])) if abs(b - x[i]) > 1e-12]
-        loose = [name for p, name in sides if p < floor]
-        pinned = not flat and not loose
-        narrow = t * se <= IDENTIFIABLE_REL * abs(value)
-        evidence = (f"misfit ×{profile[i][1] / sse:.2f} at −{PIN * 100:g} %, ×{profile[i][2] / sse:.2f} at +{PIN * 100:g} %"
-                    f" (another noise seed alone: up to ×{(sse + noise_spread) / sse:.2f})")
-        if flat:
-            note = f"fits about as well at its {' and '.join(flat)}: not identifiable from this run ({evidence})"
-        elif loose:
-            note = f"fits about as well {PIN * 100:g} % {' and '.join(loose)}: not identifiable from this run ({evidence})"
-        elif not narrow:
-            note = f"95 % interval ±{100 * t * se / abs(value):.0f} %: noise moves it too much; not identifiable ({evidence})"
-        else:
-            note = f"identified ({evidence})" + (f"; strongly correlated with {', '.join(partner)}" if partner else "")
-        fitted.append(FittedParameter(a, value, se, ci, pinned and narrow, note))
-    return fitted, corr

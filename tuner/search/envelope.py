@@ -72,6 +72,40 @@ class Risk:
         k = max(1, math.ceil(self.alpha * c.shape[1]))
         return np.sort(c, axis=1)[:, -k:].mean(axis=1)
 
+    def worst_k(self, n: int) -> int | None:
+        """How many of ``n`` lap costs make up this measure: the worst lap's 1, cvar's ⌈α·n⌉; None for the mean."""
+        if self.kind == "mean":
+            return None
+        return 1 if self.kind == "worst" else max(1, math.ceil(self.alpha * n))
+
+    def deciding(self, costs: np.ndarray, margin: float = 0.0) -> list[int] | None:
+        """The laps of ``costs`` (n,) that make up this measure (the worst lap, or cvar's worst ⌈α·n⌉), and any lap
+        within ``margin`` (relative) of the cheapest of them; None for the mean, which every lap makes up."""
+        k = self.worst_k(len(costs))
+        if k is None:
+            return None
+        c = np.asarray(costs, dtype=float)
+        order = np.argsort(-c, kind="stable")
+        floor = c[order[k - 1]] * (1.0 - margin)
+        return sorted(set(int(i) for i in order[:k]) | set(int(i) for i in np.flatnonzero(c >= floor)))
+
+    def of_worst(self, costs: np.ndarray, n: int) -> np.ndarray:
+        """This measure of (m, j) lap costs out of ``n`` laps a point has, when the other n − j cost less than these:
+        the worst lap, or the mean of the worst ⌈α·n⌉ (j must be at least that many). Equal, bit for bit, to the
+        measure of all n costs in that case."""
+        c = np.atleast_2d(np.asarray(costs, dtype=float))
+        k = self.worst_k(n)
+        if k is None or c.shape[1] < k:
+            raise ValueError(f"risk {self}: needs the worst {k} of {n} laps, got {c.shape[1]}")
+        return c.max(axis=1) if self.kind == "worst" else np.sort(c, axis=1)[:, -k:].mean(axis=1)
+
+    def lap_bound(self, bound: float, n: int) -> float:
+        """The lap cost above which a point of ``n`` laps costs more than ``bound``, whatever its other laps cost
+        (each at least 0): the worst lap counts whole, the mean 1/n of it, cvar 1/⌈α·n⌉."""
+        if self.kind == "worst":
+            return bound
+        return bound * (n if self.kind == "mean" else max(1, math.ceil(self.alpha * n)))
+
     def __str__(self) -> str:
         return f"cvar:{self.alpha:g}" if self.kind == "cvar" else self.kind
 

@@ -84,6 +84,14 @@ def _stop_reason(moved: float, gain: float, accepted: bool, alpha: float, o: Des
     return None
 
 
+def line_costs(f: Objective, candidates: np.ndarray, bound: float) -> np.ndarray:
+    """The line search's costs: only the cheapest candidate, and whether it costs less than ``bound``, decide the
+    step, so an objective that can stop the others early (``f.below``) is asked only that; any other is asked
+    every cost."""
+    below = getattr(f, "below", None)
+    return below(candidates, bound) if below is not None else f(candidates)
+
+
 def central_difference(f: Objective, z: np.ndarray, h: float, with_centre: bool = False):
     """∇F at z by central differences, one-sided where the box ends; all 2n (+1) points in one call.
 
@@ -97,7 +105,8 @@ def central_difference(f: Objective, z: np.ndarray, h: float, with_centre: bool 
             p = z.copy()
             p[i] = v
             points.append(p)
-    costs = f(np.array(points))
+    around = getattr(f, "around", None)  # an objective that can spare laps on a stencil (LapObjective.around)
+    costs = around(z, np.array(points)) if around is not None else f(np.array(points))
     centre = costs[0] if with_centre else None
     c = costs[1:] if with_centre else costs
     g = (c[0::2] - c[1::2]) / (plus - minus)
@@ -126,7 +135,7 @@ def descend(f: Objective, z0: np.ndarray, o: DescentOptions = DescentOptions(),
         d = -g / norm
         lengths = [alpha * s for s in o.line_search]
         candidates = np.array([np.clip(z + a * d, 0.0, 1.0) for a in lengths])
-        costs = f(candidates)
+        costs = line_costs(f, candidates, fz)
         evals += len(candidates)
         j = int(np.argmin(costs))
         accepted = bool(costs[j] < fz)

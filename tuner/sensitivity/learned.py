@@ -170,6 +170,6 @@ def lap_time_warning(twin: DigitalTwin, address: str, points: Sequence[tuple[flo
     fraction, (lo, hi) = spread
     if fraction >= threshold:
         return None, "scan"
-    return (f"{address} barely moves the lap time: over its physical range {lo:.4g}–{hi:.4g} the alignment's laps differ "
-            f"by {100 * fraction:.2g} % (less than {100 * threshold:g} %), so a lap time hardly tells its value (judged "
+    return (f"{address} barely moves the lap time: over the range it plausibly spans on this robot, {lo:.4g}–{hi:.4g}, "
+            f"the alignment's laps differ by {100 * fraction:.2g} % (less than {100 * threshold:g} %), so a lap time hardly tells its value (judged "
             f"from those laps: {source})"), "scan"

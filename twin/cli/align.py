@@ -4,7 +4,6 @@ or the parameters that make the twin reproduce a recorded run's telemetry."""
 from __future__ import annotations
 
 import argparse
-import math
 import os
 
 from lf_common.files import check_output_file, json_is_ours
@@ -28,8 +27,8 @@ def add_parser(sub) -> None:
         f"With --measured-lap-time: find the value of one parameter (tyre friction μ by default) for which the "
         f"simulated lap is within {ACCEPT * 100:g} % of the measured one (it aims for {TOLERANCE * 100:g} %), or say "
         "that none does. With --telemetry: fit parameters so the twin reproduces a recorded run's encoder traces and "
-        "lap time, with 95 % intervals, and say which the run cannot identify. Exit status 1 when the measurement is "
-        "not explained or a parameter is not identifiable."))
+        "lap time: for each parameter the values that fit as well as the best fit, and a 95 % interval only where the "
+        "run identifies it. Exit status 1 when the measurement is not explained or a parameter is not identifiable."))
     p.add_argument("--measured-lap-time", type=o.number(0.0, 3600.0, lo_open=True), metavar="S",
                    help="the robot's lap time [s]")
     p.add_argument("--telemetry", metavar="LAP.jsonl", help="a recorded run (lf-telemetry, see twin.telemetry.jsonl); its "
@@ -114,8 +113,8 @@ def _telemetry(args: argparse.Namespace) -> int:
     summary["history"] = o.keep_history(args.db, lambda h: record_fit(h, r.parameters, r.measured_lap_time_s), out)
     out.document(summary)
     for p in r.parameters:
-        ci = f"95 % [{p.ci95[0]:.5g}, {p.ci95[1]:.5g}]" if math.isfinite(p.stderr) else "no interval"
-        out.say(f"{p.address} = {p.value:.5g}  ({ci}): {p.note}")
+        ci = f"95 % [{p.ci95[0]:.5g}, {p.ci95[1]:.5g}]" if p.ci95 is not None else "no interval"
+        out.say(f"{p.address} = {p.value:.5g}  ({ci}): {p.note}")  # the note gives the consistent set
     lap = f"{r.simulated_lap_time_s:.3f} s" if r.simulated_lap_time_s else "not completed"
     meas = f"{r.measured_lap_time_s:.3f} s" if r.measured_lap_time_s else "no lap in the run"
     out.say(f"wheel speeds match to {r.rms_wheel_radps:.3f} rad/s rms; lap {lap} against {meas}; "

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 
 from twin.cli import options as o
 from twin.cli.output import Output
@@ -75,6 +74,6 @@ def run(args: argparse.Namespace) -> int:
         out.say(f"skipped {s}")
     if report.joint is not None:
         for p in report.joint.parameters:
-            ci = f"[{p.ci95[0]:.4g}, {p.ci95[1]:.4g}]" if math.isfinite(p.stderr) else "no interval"
+            ci = f"[{p.ci95[0]:.4g}, {p.ci95[1]:.4g}]" if p.ci95 is not None else "no interval"
             out.say(f"jointly: {p.address} = {p.value:.4g} {ci}: {p.note}")
     return 0 if any(d.explained for d in report.candidates) else 1

@@ -18,6 +18,7 @@ from twin.link.emulator import (CommandPort, Drift, NoReader, accept, check_link
 from twin.link.robot_end import COMMAND_MODES, EepromFile, RobotEnd
 from twin.telemetry.wire import GAIN_ADDRESSES, valid_robot_id
 from twin.errors import TwinError
+from twin.pil.board import load_script, runnable_program
 from twin.pil.lap import runnable_firmware
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
@@ -38,7 +39,7 @@ def add_parser(sub) -> None:
                    help="serve on 127.0.0.1:PORT instead of a pty (0: any free port)")
     p.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty, stable across restarts")
     p.add_argument("--echo", metavar="FILE", help="append every line sent to FILE")
-    o.add_firmware(p, "the robot (with avr or an ELF, the lines are the MCU's UART output)")
+    o.add_firmware(p, "the robot (with avr or a program file, the lines are the MCU's UART output)")
     p.add_argument("--drift", action="append", metavar="ADDRESS=START:END@LAPS",
                    help="a hidden parameter drifting linearly from START (lap 0) to END (lap LAPS), e.g. worn tyres "
                         "motion.mu=0.9:0.55@80; repeatable")
@@ -91,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
         check_link_path(args.link)
     echo_file = _echo_file(args.echo)
     try:
-        twin = o.twin_from_args(args)
+        program, script = o.program_from_args(args)
+        twin = o.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
         args.gains_warning = o.gains_warning(args, twin)
         twin.model()
         drifts = [Drift.parse(d, twin) for d in args.drift or ()]
@@ -102,8 +104,12 @@ def run(args: argparse.Namespace) -> int:
             if robot is not None and args.eeprom:
                 raise TwinError("--eeprom: the firmware on the MCU keeps its gains in the MCU's own EEPROM")
             elf = None if args.firmware == "avr" else args.firmware
-            runnable_firmware(twin, elf)  # a bad ELF or a missing simavr fails now, not when the first reader comes
-            lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps, drifts)
+            if elf:  # a bad program or a missing simavr fails now, not when the first reader comes
+                runnable_program(twin, elf)
+            else:
+                runnable_firmware(twin, None)
+            operator = (lambda: load_script(args.operator)) if script else None
+            lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps, operator, drifts)
             robot = None  # its program answers (or not) for itself
         echo = _echo_writer(echo_file) if echo_file else None
         if args.tcp is not None:

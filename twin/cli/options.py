@@ -22,6 +22,7 @@ from twin.errors import TwinError
 from twin.model.motor_setup import MOTOR_MODEL, catalogue_motor, motor_for_robot, use_motor
 from twin.core.identity import mismatch
 from twin.model.parameter_files import load_gains, load_values, tuned_for_record
+from twin.model.robots import ROBOTS, named_robot, use_robot
 
 MAX_SEED = 2**64 - 1
 log = logging.getLogger(__name__)
@@ -106,12 +107,14 @@ count_type = number(1, 10**9, integer=True)
 def add_world(p: argparse.ArgumentParser, track_default: str | None = "default", robot: bool = True) -> None:
     """--track, --metres-per-pixel, --robot: the robot and the floor it runs on."""
     p.add_argument("--track", default=track_default, metavar="NAME|PNG",
-                   help="built-in track (default, oval, circle, chicane) or an image of a dark closed line")
+                   help="built-in track (default, oval, circle, chicane; maze: a line maze for a maze-solving 3pi "
+                   "program) or an image of a dark closed line")
     p.add_argument("--metres-per-pixel", type=number(0.0, 0.1, lo_open=True), metavar="M",
                    help="scale of an image track without DPI metadata [m]")
     if robot:
-        p.add_argument("--robot", metavar="URDF|XACRO", help="a differential-drive robot description (.urdf, .xacro, "
-                       ".urdf.xacro) instead of the generated robot")
+        p.add_argument("--robot", metavar="URDF|XACRO|NAME", help="a differential-drive robot description (.urdf, "
+                       f".xacro, .urdf.xacro) instead of the generated robot, or a named robot ({', '.join(ROBOTS)}: "
+                       "Pololu's original 3pi)")
         p.add_argument("--motor", metavar="NAME", help="both drive motors from the motor catalogue (default: the "
                        "generated robot's; for a --robot, the catalogue motor that fits its mass and wheels, else one "
                        "sized for it)")
@@ -165,11 +168,32 @@ def add_out_dir(p: argparse.ArgumentParser, what: str, default: str | None) -> N
                    help=f"write {what} into this folder (new, empty, or one this program wrote)")
 
 
-def add_firmware(p: argparse.ArgumentParser, what: str) -> None:
-    p.add_argument("--firmware", metavar="c|avr|FILE.elf", default="c",
+def add_firmware(p: argparse.ArgumentParser, what: str, operator: bool = True) -> None:
+    p.add_argument("--firmware", metavar="c|avr|FILE", default="c",
                    help=f"what runs the firmware for {what}: c, the portable C in the twin's callback; avr, the robot's "
                    "ATmega328P program built from twin/csrc/firmware/avr and run cycle by cycle in simavr (processor "
-                   "in the loop); or an ELF of that program")
+                   "in the loop); or a program file, ELF or Intel HEX, as flashed: that program again, or any 3pi "
+                   "program (e.g. built with Pololu's libpololu-avr), run unmodified on the 3pi's board and, without "
+                   "--robot, on the 3pi")
+    if operator:
+        p.add_argument("--operator", metavar="FILE.json", help="button presses for a 3pi program, at times or when the "
+                       "LCD shows a text (default: press the button the LCD asks for, else B, when the program has "
+                       "polled the buttons for a moment with the motors still)")
+
+
+def program_from_args(args: argparse.Namespace):
+    """The program ``--firmware FILE`` names, loaded and checked for the MCU (None for c and avr); the ``--operator``
+    script if one is given. A one-line TwinError on a bad file."""
+    from twin.pil.board import load_script
+    from twin.pil.program import load_program
+
+    firmware = getattr(args, "firmware", "c")
+    program = None if firmware in ("c", "avr") else load_program(firmware)
+    script = getattr(args, "operator", None)
+    if script and (program is None or program.traced):
+        raise TwinError("--operator: presses buttons for a 3pi program run on the board (--firmware FILE of a program "
+                        "other than the twin's own firmware)")
+    return program, load_script(script) if script else None
 
 
 def add_json(p: argparse.ArgumentParser) -> None:
@@ -332,15 +356,26 @@ def robot_config(args: argparse.Namespace) -> RobotConfig:
 
 # --- the twin the flags describe -----------------------------------------------------------------------
 
-def twin_from_args(args: argparse.Namespace, track: str | None = None) -> DigitalTwin:
-    """The twin the command line describes: world options, then --gains, --params, then --set (which wins).
+def twin_from_args(args: argparse.Namespace, track: str | None = None, robot: str | None = None) -> DigitalTwin:
+    """The twin the command line describes: world options (a named robot's values: ``--robot 3pi``), then --gains,
+    --params, then --set (which wins).
 
     Args:
       args: parsed options of :func:`add_world` and :func:`add_values` (missing ones are skipped).
       track: overrides ``args.track`` (e.g. the track a telemetry file names).
+      robot: the named robot when ``--robot`` names none (a 3pi program runs on the 3pi).
     """
-    twin = DigitalTwin(track=track or getattr(args, "track", None) or "default", robot_urdf=getattr(args, "robot", None),
-                       robot_config=robot_config(args), track_metres_per_pixel=getattr(args, "metres_per_pixel", None))
+    given = getattr(args, "robot", None)
+    named = named_robot(given or robot or "")
+    config = robot_config(args)
+    if named is not None and given and config != RobotConfig():
+        raise TwinError(f"--robot {given}: a named robot has no description to read; the description flags apply to a "
+                        "URDF or xacro")
+    twin = DigitalTwin(track=track or getattr(args, "track", None) or "default",
+                       robot_urdf=None if named is not None else given, robot_config=config,
+                       track_metres_per_pixel=getattr(args, "metres_per_pixel", None))
+    if named is not None:
+        use_robot(twin, named)
     changes: dict = {}
     if getattr(args, "gains", None):
         changes.update(load_gains(args.gains, twin.space))

@@ -52,8 +52,9 @@ def _sweep_on_cluster(args, twin, axes, seeds, out: Output):
 
     from mjcf.track import BUILTIN_SEGMENTS
     from tuner.studies.cluster import sweep_on_ray
+    from twin.model.robots import named_robot
 
-    if getattr(args, "robot", None):
+    if getattr(args, "robot", None) and named_robot(args.robot) is None:
         raise TwinError("--cluster: the nodes get parameter values, not files; a --robot description cannot go with "
                         "them (sweep it locally)")
     if args.track not in BUILTIN_SEGMENTS:

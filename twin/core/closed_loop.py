@@ -11,14 +11,24 @@ max), then be put back on the start line, and follow the line until the lap ends
 their gains calibrate identically, so each distinct calibration is simulated once per build of the twin and
 reused (bit-identical to simulating it again). A turn longer than ``LapLimits.calibration_timeout_s`` is not
 simulated at all: its laps fail at once.
+
+Decided laps stop at once: the C loop judges every tick of a lap as Python does (``twin/csrc/sim/lap_judge.c``,
+tested equal to :class:`twin.core.lap.LapJudge`) and, the tick a lap is decided, ends its ``mujoco.batch`` rollout
+(it raises a warning counter, the batch's one per-simulation stop). The steps up to that tick are the same as
+without stopping, so no decision, lap time or statistic changes; ``stop_decided=False`` steps every lap to the end
+of its chunk instead, as before. A caller that needs a lap only while it could still matter stops it earlier:
+past a simulated time (``deadline_s``, in C) or when it says so between chunks (``cut``); such a lap ends as
+``stopped``, its ``simulated_s`` a lower bound of when it would have ended.
 """
 
 from __future__ import annotations
 
 import copy
 import ctypes
+import dataclasses
 import logging
-from typing import Callable, Mapping, Sequence
+import math
+from typing import Callable, Iterable, Mapping, Sequence
 
 import mujoco
 import mujoco.batch
@@ -31,6 +41,7 @@ from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
 from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.maze import refuse_maze
 from twin.core.outcomes import Outcome
 from twin.core.variant import Variant, field_key
 
@@ -51,6 +62,9 @@ def run_laps(
     keep_traces: bool = True,
     on_chunk: Callable[[float, int], None] | None = None,
     reuse_calibration: bool = True,
+    stop_decided: bool = True,
+    deadline_s: Sequence[float] | None = None,
+    cut: Callable[[list["Progress"]], Iterable[int]] | None = None,
 ) -> list[LapResult]:
     """Run one lap per variant, all at once, and return their results in order.
 
@@ -65,26 +79,46 @@ def run_laps(
       on_chunk: called after each batch call with (simulated seconds of the slowest lap, laps still running).
       reuse_calibration: use a calibration turn this twin already simulated (bit-identical); False simulates
         every distinct turn again, e.g. to time it.
+      stop_decided: stop each lap at the tick it is decided (the results are the same either way); False steps it
+        to the end of its chunk.
+      deadline_s: per lap, the simulated time [s] past which it ends as ``stopped`` if still undecided (inf: never).
+      cut: called after every chunk with each lap's :class:`Progress`; the running laps whose indices it returns end
+        as ``stopped``.
     """
     if not variants:
         return []
     seeds = list(seed) if isinstance(seed, (list, tuple, range, np.ndarray)) else [seed] * len(variants)
     if len(seeds) != len(variants):
         raise TwinError(f"seeds: {len(seeds)} given for {len(variants)} laps")
+    deadlines = [math.inf] * len(variants) if deadline_s is None else [float(t) for t in deadline_s]
+    if len(deadlines) != len(variants) or any(math.isnan(t) for t in deadlines):
+        raise TwinError(f"deadline_s: one time per lap ({len(variants)}), not NaN")
+    if not stop_decided and (deadline_s is not None or cut is not None):
+        raise TwinError("deadline_s and cut stop laps early: they need stop_decided")
     for s in seeds:
         check_seed(s)
     model = twin.model()
+    refuse_maze(twin.track, "the twin's controller")
     laps = [Variant.of(twin, v) for v in variants]
     core.install_callback()
     fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds,
-                  [LapJudge(twin.track, limits, keep_traces) for _ in laps])
+                  [LapJudge(twin.track, limits, keep_traces) for _ in laps], stop_decided)
     _refuse_long_turns(fleet, limits)
     keys = [lap.calibration_key(s) for lap, s in zip(laps, seeds)]
     turns = twin.calibrations.of(twin.rebuilds) if reuse_calibration else {}
     failed = _calibrate(fleet, keys, turns)
-    cal = _start_laps(fleet, keys, turns, failed, limits)
-    _drive(fleet, twin.track.length_m, on_chunk)
-    return [j.result(lap.params.count, *cal[i], lap.values) for i, (j, lap) in enumerate(zip(fleet.judges, laps))]
+    fleet.cal = _start_laps(fleet, keys, turns, failed, limits, deadlines)
+    _drive(fleet, twin.track.length_m, on_chunk, cut)
+    return [fleet.result(i) for i in range(len(laps))]
+
+
+@dataclasses.dataclass(frozen=True)
+class Progress:
+    """A lap between two chunks: its result once it has ended (else None), and the simulated time of its last tick
+    [s]. Whatever it still does, a running lap ends after ``time_s``."""
+
+    result: LapResult | None
+    time_s: float
 
 
 def check_seed(seed) -> None:
@@ -115,11 +149,53 @@ class Fleet:
     """The laps' simulations in one batch: their userdata heads, their judges, stepping and draining them."""
 
     def __init__(self, twin: DigitalTwin, model: mujoco.MjModel, batch: mujoco.batch.Batch, laps: list[Variant],
-                 seeds: list[int], judges: list[LapJudge]):
+                 seeds: list[int], judges: list[LapJudge], stop_decided: bool = False):
         self.twin, self.model, self.batch, self.laps, self.seeds, self.judges = twin, model, batch, laps, seeds, judges
+        self.stop_decided = stop_decided
         self.steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]  # physics steps per tick
         self.sims: list[core.Sim] = []
         self.consumed = np.zeros(len(laps), dtype=np.int64)  # records each judge has read
+        self.cal: list[tuple] = [([], [])] * len(laps)  # each lap's calibration (min, max)
+        self.results: dict[int, LapResult] = {}
+
+    def result(self, i: int) -> LapResult:
+        """Lap i's result, once it has ended (made once)."""
+        if i not in self.results:
+            self.results[i] = self.judges[i].result(self.laps[i].params.count, *self.cal[i], self.laps[i].values)
+        return self.results[i]
+
+    def progress(self) -> list[Progress]:
+        return [Progress(self.result(i) if j.done else None, j.prev[0]) for i, j in enumerate(self.judges)]
+
+    def run(self, ids: np.ndarray, nstep: int) -> None:
+        """Step running laps ``nstep`` steps. With stop_decided, a lap stops at the step the C judge decided it or it
+        passed its deadline; a lap that one of MuJoCo's own warnings stopped (a rollout stops at any) is stepped on
+        to the chunk's end, as a plain step would have."""
+        if not self.stop_decided:
+            return self.step(ids, nstep)
+        t0 = self.batch.time[ids].copy()
+        self.step(ids, nstep, rollout=True)
+        rest: dict[int, list[int]] = {}
+        for i, t in zip(ids, t0):
+            done = round((float(self.batch.time[i]) - t) / self.laps[i].physics.timestep)
+            if done < nstep and not self.sims[i].stop_raised and not self.judges[i].done:
+                rest.setdefault(nstep - done, []).append(int(i))
+        for n, left in sorted(rest.items()):
+            self.step(np.array(left), n)
+
+    def end_stopped(self, ids: list[int]) -> None:
+        """After a drain: the laps the C stopped undecided (past their deadline) end as ``stopped``."""
+        for i in ids:
+            j, sim = self.judges[i], self.sims[i]
+            if j.done or not sim.stop_raised:
+                continue
+            if sim.judge.status != 0:  # the C decided a lap that Python, fed the same records, did not
+                raise TwinError(f"lap {i}: the C judge ended it ({sim.judge.status}) and Python's did not")
+            self.stop(i, f"past its deadline of {sim.deadline_s:g} s")
+
+    def stop(self, i: int, why: str) -> None:
+        t, _, energy = self.judges[i].prev
+        self.judges[i].fail(Outcome.STOPPED, f"stopped at {t:.3f} s, undecided: {why}", t, energy)
 
     def reset(self) -> None:
         """Every simulation on the start line with a fresh head, uncalibrated and in the calibration phase."""
@@ -128,11 +204,15 @@ class Fleet:
         self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seeds[i], lap.physics)
                      for i, lap in enumerate(self.laps)]
 
-    def step(self, ids: np.ndarray, nstep: int) -> None:
-        """Step some simulations; a lap ends as ``diverged`` where MuJoCo raises or the state turns non-finite,
-        and as ``refused`` where the C loop refused its userdata."""
+    def step(self, ids: np.ndarray, nstep: int, rollout: bool = False) -> None:
+        """Step some simulations (as a rollout: each stops where its warning counters rise); a lap ends as
+        ``diverged`` where MuJoCo raises or the state turns non-finite, and as ``refused`` where the C loop refused
+        its userdata."""
         try:
-            self.batch.step(ids=ids, nstep=nstep)
+            if rollout:
+                self.batch.rollout(nstep, record=(), ids=ids)
+            else:
+                self.batch.step(ids=ids, nstep=nstep)
         except mujoco.batch.SimulationError as e:
             for i in e.ids:
                 self._fail(int(i), Outcome.DIVERGED, f"MuJoCo: {self.batch.error(int(i))}")
@@ -223,27 +303,33 @@ def _calibrate(fleet: Fleet, keys: list[tuple], turns: dict) -> dict[tuple, tupl
     fleet.reset()
     if not todo:
         return {}
-    ids = np.array(sorted(todo.values()))
-    nstep = max((calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i] for i in ids)
-    fleet.step(ids, nstep)
+    # each turn steps exactly its own length: a longer one in the batch must not give it extra idle ticks, whose
+    # sensor reads would draw noise and make its lap depend on the laps it shares a batch with
+    groups: dict[int, list[int]] = {}
+    for i in sorted(todo.values()):
+        groups.setdefault((calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i], []).append(i)
+    for nstep, ids in sorted(groups.items()):
+        fleet.step(np.array(ids), nstep)
     failed = {}
     for k, i in todo.items():
         s = fleet.sims[i]
         if fleet.judges[i].done:
             failed[k] = fleet.judges[i].outcome  # not kept: every lap with this turn fails alike
         elif s.fw.mode != IDLE:
-            raise TwinError(f"lap {i}: calibration did not finish in {nstep} steps")
+            raise TwinError(f"lap {i}: calibration did not finish in {(calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i]} steps")
         else:
             turns[k] = (tuple(s.fw.cal_min[: s.nsensor]), tuple(s.fw.cal_max[: s.nsensor]), int(s.rng))
     fleet.reset()  # the turn moved them: back to the start
     return failed
 
 
-def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limits: LapLimits) -> list[tuple]:
-    """Put each lap in the run phase with the calibration (min, max and noise generator state) its turn made;
-    a lap whose turn failed or left a sensor with too small a range ends here. Returns (min, max) per lap."""
+def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limits: LapLimits,
+                deadlines: list[float]) -> list[tuple]:
+    """Put each lap in the run phase with the calibration (min, max and noise generator state) its turn made,
+    judged in C if decided laps stop; a lap whose turn failed or left a sensor with too small a range ends here.
+    Returns (min, max) per lap."""
     cal = []
-    for lap, sim, judge, k in zip(fleet.laps, fleet.sims, fleet.judges, keys):
+    for lap, sim, judge, k, deadline in zip(fleet.laps, fleet.sims, fleet.judges, keys, deadlines):
         if k not in turns:
             if k in failed:
                 code, detail, t, _, energy = failed[k]
@@ -258,27 +344,45 @@ def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limi
         if why := range_too_small(fleet.twin, lap.params, lap.sensor, lo, hi, limits):
             judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         start_phase(sim, RUN)
+        if fleet.stop_decided:
+            start_judge(sim, fleet.twin.track.length_m, limits, deadline)
     return cal
 
 
+def start_judge(sim: core.Sim, length_m: float, limits: LapLimits, deadline_s: float = math.inf) -> None:
+    """Judge the phase in C too, so that the simulation stops the tick it is decided or passes ``deadline_s``."""
+    c = core.LapLimitsC(limits.max_cross_track_m, limits.max_progress_jump_m, limits.max_line_lost_s, limits.timeout_s)
+    core.lib.lf_judge_start(ctypes.byref(sim.judge), length_m, ctypes.byref(c))
+    sim.deadline_s = deadline_s
+    sim.stop_raised = 0
+    sim.judge_on = 1
+
+
 # --- the lap
-def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None] | None) -> None:
+def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None] | None,
+           cut: Callable[[list[Progress]], Iterable[int]] | None = None) -> None:
     """Step the running laps chunk by chunk, judging each chunk, until every lap has ended."""
-    # no lap can be faster than its wheels' no-load speed: step no further than that could finish it
+    # no lap can be faster than its wheels' no-load speed: step no further than that could finish it (needed only
+    # when laps do not stop themselves once decided)
     tick_m = [lap.params.wheel_speed_max * lap.params.wheel_radius_m * lap.physics.timestep * k
               for lap, k in zip(fleet.laps, fleet.steps)]
     while True:
         active = [i for i, j in enumerate(fleet.judges) if not j.done]
         if not active:
             return
-        # laps with the same power-of-two chunk step together, so a lap near its end does not hold back the rest
+        # laps with the same chunk step together, so a lap near its end does not hold back the rest
         groups: dict[int, list[int]] = {}
         for i in active:
-            ticks = chunk_ticks(length_m - (fleet.judges[i].u_last or 0.0), tick_m[i])
+            ticks = CHUNK_TICKS if fleet.stop_decided else chunk_ticks(length_m - (fleet.judges[i].u_last or 0.0), tick_m[i])
             groups.setdefault(ticks * fleet.steps[i], []).append(i)
         for nstep, ids in sorted(groups.items()):
-            fleet.step(np.array(ids), nstep)
+            fleet.run(np.array(ids), nstep)
         fleet.drain(active)
+        fleet.end_stopped(active)
+        if cut is not None:
+            for i in sorted(set(int(i) for i in cut(fleet.progress()))):
+                if not fleet.judges[i].done:
+                    fleet.stop(i, "its caller no longer needs it")
         if on_chunk is not None:
             on_chunk(float(fleet.batch.time[active].max()), int(sum(not j.done for j in fleet.judges)))
 

@@ -12,6 +12,7 @@ import dataclasses
 import hashlib
 import json
 import logging
+import math
 import os
 from typing import Mapping
 
@@ -175,7 +176,9 @@ class DigitalTwin:
         timestep = v["motion.timestep"]
         steps = c["dt"] / timestep
         if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
-            raise TwinError(f"control.dt: {c['dt']:g} s is not a whole number of physics steps ({timestep:g} s)")
+            fit = c["dt"] / max(1, math.ceil(c["dt"] / timestep - 1e-9))
+            raise TwinError(f"control.dt: {c['dt']:g} s is not a whole number of physics steps ({timestep:g} s); "
+                            f"set motion.timestep to a fraction of it, e.g. {fit:.6g}")
         # the firmware's belief about its motors is its own constant (control.full_speed), not the simulated motor:
         # a robot whose real motors differ from the datasheet drives differently, as it would
         return ControlParams(

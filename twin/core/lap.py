@@ -14,7 +14,9 @@ nearest the centre of rotation (computed by the C loop at every tick, ``lf_locat
   than ``calibration_timeout_s`` of simulated time (then it is not simulated at all);
 * ``refused``: the C loop found that a simulation's userdata did not fit the model it was stepped with
   (a program error, reported as a result rather than a crash);
-* ``firmware_stalled``: the robot's binary in the loop stopped (:mod:`twin.pil.lap`).
+* ``firmware_stalled``: the robot's binary in the loop stopped (:mod:`twin.pil.lap`);
+* ``stopped``: undecided, ended early because its caller no longer needed it (``run_laps``' ``deadline_s`` or ``cut``):
+  its ``simulated_s`` is how far it got, a lower bound of when it would have ended.
 
 A failed lap is a result, not an exception. The codes are :class:`twin.core.outcomes.Outcome`.
 """
@@ -106,6 +108,17 @@ class LapResult:
         return out
 
 
+def earliest(events, n: int) -> tuple[int, tuple[Outcome, str] | None]:
+    """The first of ``n`` ticks at which one of ``events`` [(mask (n,), outcome, detail)] happens, and which: the
+    earliest event wins, ties go to the one listed first; (n, None) if none happens."""
+    end, why = n, None
+    for mask, code, detail in events:
+        hit = np.flatnonzero(mask)
+        if len(hit) and hit[0] < end:
+            end, why = int(hit[0]), (code, detail)
+    return end, why
+
+
 class LapJudge:
     """Follows one simulation's trace chunk by chunk and decides when and how its lap ends."""
 
@@ -153,11 +166,7 @@ class LapJudge:
             (u >= length, Outcome.COMPLETED, "lap completed"),
             (t > lim.timeout_s, Outcome.TIMEOUT, f"no lap after {lim.timeout_s:g} s"),
         ]
-        end, why = len(rec), None
-        for mask, code, detail in events:
-            hit = np.flatnonzero(mask)
-            if len(hit) and hit[0] < end:  # the earliest event wins; ties go to the one listed first
-                end, why = int(hit[0]), (code, detail)
+        end, why = earliest(events, len(rec))
         keep = slice(0, end + 1 if why else end)
         self._account(rec[keep], u[keep], offset[keep])
         prev = self.prev if end == 0 else (float(t[end - 1]), float(u[end - 1]), float(rec[end - 1, COL["energy_j"]]))
@@ -190,19 +199,25 @@ class LapJudge:
             self.outcome = (code, detail, t, self.u_last or 0.0, energy)
 
     def result(self, count: int, cal_min, cal_max, parameters: dict) -> LapResult:
-        if self.outcome is None:
-            raise TwinError("lap judge: the lap has not ended")
-        code, detail, t_end, u_end, energy = self.outcome
-        trace = None
-        if self.keep_trace and self.chunks:
-            rec, u, off = (np.concatenate(x) for x in zip(*self.chunks))
-            trace = LapTrace(rec, u, off, count)
-        completed = code == Outcome.COMPLETED
-        return LapResult(  # failure: the plain string, as JSON and every reader of a result take it
-            completed=completed, failure=None if completed else Outcome(code).value, detail=detail,
-            lap_time_s=t_end if completed else None, simulated_s=t_end, distance_m=max(0.0, u_end),
-            track_length_m=self.track.length_m, max_cross_track_m=self.abs_max,
-            mean_cross_track_m=self.abs_sum / self.n if self.n else 0.0, energy_j=energy,
-            calibration_min_us=tuple(int(v) for v in cal_min), calibration_max_us=tuple(int(v) for v in cal_max),
-            parameters=parameters, trace=trace,
-        )
+        return judged(self, self.track.length_m, count, cal_min, cal_max, parameters)
+
+
+def judged(judge, length_m: float, count: int, cal_min, cal_max, parameters: dict) -> LapResult:
+    """The result of a judge that has ended (``outcome``: code, detail, time, distance, energy; running ``n``,
+    ``abs_sum``, ``abs_max`` of the cross-track error; the kept trace ``chunks``)."""
+    if judge.outcome is None:
+        raise TwinError("lap judge: the lap has not ended")
+    code, detail, t_end, distance, energy = judge.outcome
+    trace = None
+    if judge.keep_trace and judge.chunks:
+        rec, u, off = (np.concatenate(x) for x in zip(*judge.chunks))
+        trace = LapTrace(rec, u, off, count)
+    completed = code == Outcome.COMPLETED
+    return LapResult(  # failure: the plain string, as JSON and every reader of a result take it
+        completed=completed, failure=None if completed else Outcome(code).value, detail=detail,
+        lap_time_s=t_end if completed else None, simulated_s=t_end, distance_m=max(0.0, distance),
+        track_length_m=length_m, max_cross_track_m=judge.abs_max,
+        mean_cross_track_m=judge.abs_sum / judge.n if judge.n else 0.0, energy_j=energy,
+        calibration_min_us=tuple(int(v) for v in cal_min), calibration_max_us=tuple(int(v) for v in cal_max),
+        parameters=parameters, trace=trace,
+    )

@@ -27,7 +27,7 @@ from twin.core.outcomes import REFUSALS, c_names
 from twin.errors import TwinError
 
 MAGIC = 1279676025.0
-LAYOUT_VERSION = 5
+LAYOUT_VERSION = 7
 # the model sizes a head is written for, in the order of model_signature() in mujoco_glue.c
 SIGNATURE = ("nbody", "nsite", "ntex", "ntexdata", "nu", "na", "nv", "nnumericdata")
 
@@ -52,6 +52,7 @@ class FwState(ctypes.Structure):
         ("position", c_int32), ("last_position", c_int32), ("line_seen", c_int32), ("mode", c_int32),
         ("tick", c_uint32), ("e", c_double), ("e_prev", c_double), ("integral", c_double), ("v", c_double),
         ("omega", c_double), ("duty_left", c_double), ("duty_right", c_double),
+        ("call_min", c_uint16 * MAX_SENSORS), ("call_max", c_uint16 * MAX_SENSORS), ("call_reads", c_int32),
     ]
 
 
@@ -68,6 +69,22 @@ class Texture(ctypes.Structure):
         ("data", ctypes.POINTER(ctypes.c_uint8)), ("width", c_int32), ("height", c_int32), ("nchannel", c_int32),
         ("origin_x", c_double), ("origin_y", c_double), ("metres_per_pixel", c_double),
     ]
+
+
+class LapLimitsC(ctypes.Structure):
+    """``lf_lap_limits``: the failure thresholds of :class:`twin.core.lap.LapLimits` the C judge applies."""
+
+    _fields_ = [(n, c_double) for n in ("max_cross_track_m", "max_progress_jump_m", "max_line_lost_s", "timeout_s")]
+
+
+class JudgeC(ctypes.Structure):
+    """``lf_judge``: the lap judge in C (twin/csrc/sim/lap_judge.h), Python's :class:`twin.core.lap.LapJudge` record by
+    record."""
+
+    _fields_ = [("limits", LapLimitsC), ("length_m", c_double), ("status", c_int32), ("started", c_int32),
+                ("records", c_int64)] + [(n, c_double) for n in (
+                    "u_last", "s_last", "t_seen", "prev_t", "prev_u", "prev_energy", "abs_sum", "abs_max", "end_t",
+                    "end_u", "end_energy")]
 
 
 RECORD_FIELDS = (
@@ -97,6 +114,7 @@ class Sim(ctypes.Structure):
         ("phase_start_time", c_double), ("last_time", c_double), ("energy_j", c_double),
         ("offset_abs_sum_m", c_double), ("offset_abs_max_m", c_double),
         ("fw", FwState), ("raw", c_uint16 * MAX_SENSORS),
+        ("judge_on", c_int32), ("stop_raised", c_int32), ("deadline_s", c_double), ("judge", JudgeC),
     ]
 
 
@@ -129,7 +147,8 @@ def mirrors() -> dict[str, dict[str, tuple[int, int]]]:
     """{C struct: {field: (offset, size) in bytes}} as this module mirrors them; records are rows of float64."""
     out = {c: {f[0]: (getattr(cls, f[0]).offset, getattr(cls, f[0]).size) for f in cls._fields_}
            for c, cls in (("lf_sim", Sim), ("lf_params", Params), ("lf_state", FwState),
-                          ("lf_sensor_model", SensorModelC), ("lf_texture", Texture))}
+                          ("lf_sensor_model", SensorModelC), ("lf_texture", Texture), ("lf_lap_limits", LapLimitsC),
+                          ("lf_judge", JudgeC))}
     out["lf_record"] = {name: (8 * i, 8) for i, name in enumerate(RECORD_FIELDS)}
     out["lf_record"].update(raw_us=(8 * RAW_COLUMN, 8 * MAX_SENSORS), calibrated=(8 * CALIBRATED_COLUMN, 8 * MAX_SENSORS))
     return out
@@ -231,6 +250,9 @@ def _load() -> ctypes.CDLL:
     lib.lf_rng_next.restype = c_uint64
     lib.lf_noise.argtypes = [P(c_uint64)]
     lib.lf_noise.restype = c_double
+    lib.lf_judge_start.argtypes = [P(JudgeC), c_double, P(LapLimitsC)]
+    lib.lf_judge_feed.argtypes = [P(JudgeC), P(c_double)]
+    lib.lf_judge_feed.restype = c_int32
     return lib
 
 
@@ -288,6 +310,15 @@ def install_callback() -> None:
     models stepped in the same process are untouched. Installing twice is harmless.
     """
     mujoco.set_mjcb_control(lib.lf_control_callback)
+    _mjcb_time.value = _PACKAGE_TIMER if MUJOCO_PROFILER else None
+
+
+# the mujoco package installs a high-resolution timer as MuJoCo's profiling callback (mjcb_time), which every mj_step
+# calls at each of its stages: ~5 % of a lap's CPU time. Nothing here reads mjData.timer, so install_callback turns it
+# off unless this is True (a benchmark of the code as it was)
+MUJOCO_PROFILER = False
+_mjcb_time = ctypes.c_void_p.in_dll(_mujoco, "mjcb_time")
+_PACKAGE_TIMER = _mjcb_time.value
 
 
 def model_signature(model: mujoco.MjModel) -> tuple[int, ...]:

@@ -59,6 +59,7 @@ class Outcome(str, enum.Enum):
     CALIBRATION = "calibration"
     REFUSED = "refused"  # the C refused the simulation (a program error, reported as a result)
     FIRMWARE_STALLED = "firmware_stalled"  # the binary in the loop stopped (twin.pil.lap)
+    STOPPED = "stopped"  # ended undecided by its caller, whom its outcome could no longer matter (run_laps' deadline_s, cut)
 
 
 # ``enum lf_lap_status``: a lap the C judges (the FMU) is running (0) or ended with one of these outcomes (1 …)

@@ -115,18 +115,35 @@ def lap_records(twin: DigitalTwin, seed: int, every: int, laps: int | None, robo
         k += 1
 
 
-def firmware_lap_records(twin: DigitalTwin, elf: str | None, seed: int, every: int,
-                         laps: int | None, drifts: Sequence[Drift] = ()) -> Iterator[tuple[float, str]]:
+def firmware_lap_records(twin: DigitalTwin, elf: str | None, seed: int, every: int, laps: int | None,
+                         operator=None, drifts: Sequence[Drift] = ()) -> Iterator[tuple[float, str]]:
     """(time since power-up [s], wire line) for lap after lap of the robot's own firmware on the emulated MCU
     (:func:`twin.pil.lap.run_pil_lap`): its UART lines as it sent them, and after each lap the LAP or FAIL event of a
-    timing gate at the finish line (the robot itself cannot tell a lap from the next)."""
-    from twin.pil.lap import run_pil_lap  # needs the simavr glue only when asked for
+    timing gate at the finish line (the robot itself cannot tell a lap from the next). Any other 3pi program runs
+    on the board (:func:`twin.pil.board.run_board_lap`, ``operator()`` making each lap's operator) from power-up: its
+    UART lines as it sent them, whatever they are, then the gate's event."""
+    from twin.pil.board import Operator, run_board_lap  # needs the simavr glue only when asked for
+    from twin.pil.lap import run_pil_lap
+    from twin.pil.program import load_program
 
+    program = load_program(elf) if elf else None
     offset, k = 0.0, 0
     while laps is None or k < laps:
         lines: list[tuple[float, str]] = []
         if drifts:
             twin.update(drifted(drifts, k))
+        if program is not None and not program.traced:
+            lap, report = run_board_lap(twin, program, seed=seed + k, keep_trace=False,
+                                        operator=operator() if operator else Operator(),
+                                        on_line=lambda t, line: lines.append((t, line)))
+            start = report.lap_start_s or 0.0
+            span = start + (lap.lap_time_s if lap.completed else lap.simulated_s)
+            yield from ((offset + t, line) for t, line in lines if t <= span)
+            yield offset + span, encode(Event(span, "LAP", lap_time_s=lap.lap_time_s) if lap.completed
+                                        else Event(span, "FAIL", reason=lap.failure))
+            offset += span
+            k += 1
+            continue
         lap, _ = run_pil_lap(twin, elf, seed=seed + k, keep_trace=False, telemetry_every=every,
                              on_line=lambda t, line: lines.append((t, line)))
         span = lap.lap_time_s if lap.completed else lap.simulated_s

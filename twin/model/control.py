@@ -90,13 +90,14 @@ class FirmwareState:
     omega: float = 0.0
     duty_left: float = 0.0
     duty_right: float = 0.0
+    call: list[list[int]] = dataclasses.field(default_factory=list)  # the calibration call under way: its readings
 
     @classmethod
     def uncalibrated(cls, count: int, timeout_us: int) -> "FirmwareState":
         return cls(cal_min=[timeout_us] * count, cal_max=[0] * count, value=[0] * count)
 
     def reset(self, mode: int) -> None:
-        """Start a phase; the calibration is kept (``lf_reset``)."""
+        """Start a phase; the calibration is kept, a calibration call under way dropped (``lf_reset``)."""
         cal_min, cal_max, value = self.cal_min, self.cal_max, self.value
         self.__init__(cal_min, cal_max, value, mode=mode)
 
@@ -161,7 +162,7 @@ def firmware_step(s: FirmwareState, p: ControlParams, raw: Sequence[int]) -> Non
     s.value = read_calibrated(raw, s.cal_min, s.cal_max)
     if s.mode == CALIBRATE:
         direction = calibration_direction(p, s.tick)
-        calibrate_update(s.cal_min, s.cal_max, raw)
+        calibrate_update(s.cal_min, s.cal_max, s.call, raw)
         s.duty_left = -direction * p.cal_duty
         s.duty_right = direction * p.cal_duty
         if direction == 0:

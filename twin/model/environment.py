@@ -8,6 +8,7 @@ import numpy as np
 
 from mjcf import track as track_mod
 from lf_common.errors import InputTooLarge
+from mjcf.maze import maze_track
 from mjcf.track import MAX_TEXTURE_PIXELS, FloorTexture, Track
 from mjcf.track_image import track_from_png
 from twin.errors import TwinError
@@ -30,10 +31,13 @@ def load_track(
     if name_or_path.lower().endswith((".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")) or os.sep in name_or_path:
         track, texture = track_from_png(name_or_path, metres_per_pixel=metres_per_pixel)
         return track, _padded(texture, margin_m=0.3)
+    if name_or_path == "maze":
+        maze = maze_track(line_width)
+        return maze, maze.rasterise(metres_per_pixel=texture_resolution)
     if name_or_path not in track_mod.BUILTIN_SEGMENTS:
         raise TwinError(
             f"track {name_or_path!r}: unknown track; built-in tracks are {', '.join(track_mod.BUILTIN_SEGMENTS)}, "
-            "or give a PNG file"
+            "maze, or give a PNG file"
         )
     centre_track = track_mod.builtin(name_or_path)
     track = Track(centre_track.name, centre_track.centre, line_width_m=line_width)

@@ -9,26 +9,21 @@ processor-in-the-loop glue in the twin, and with ``avrdude -U eeprom:w:…`` on 
 from __future__ import annotations
 
 import binascii
-import dataclasses
 import functools
 import hashlib
 import os
-import re
 import shutil
 import struct
 import subprocess
 
 from lf_common.cache import cache_dir, cached_folder
-from lf_common.files import input_file
 from twin.model.control import ControlParams
 from twin.errors import TwinError
+from twin.pil.program import FLASH_BYTES, MCU, RAM_BYTES, TRACE_SYMBOLS, Program, load_program  # noqa: F401 (fw.*)
 
-MCU = "atmega328p"
 F_CPU_HZ = 20_000_000
 BOARD = "pololu-3pi-atmega328p"
 BOARD_MAX_SENSORS = 8  # board_3pi_pins.h: PC0..PC4, then the LCD's control lines
-FLASH_BYTES, RAM_BYTES = 32768, 2048  # the ATmega328P's
-VECTORS = 26  # interrupt vectors of the ATmega328P, reset included (datasheet, "Interrupts")
 TIMER1_HZ = F_CPU_HZ / 8  # the tick and the sensor reads count at 0.4 µs
 QTR_TIMEOUT_MAX_US = 26000  # LF_QTR_TIMEOUT_MAX_US: Timer1's 16-bit count
 SOURCE_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "csrc", "firmware")
@@ -38,7 +33,6 @@ PROGRAMS = {
 }
 CFLAGS = ("-Os", "-std=gnu99", "-Wall", "-Wextra", "-Werror", "-ffunction-sections", "-fdata-sections",
           "-Wl,--gc-sections")
-TRACE_SYMBOLS = ("fw_state", "fw_raw_us", "fw_tick_mode", "fw_ticks_done")  # what the glue reads each tick
 INSTALL_AVR_GCC = "apt-get install gcc-avr avr-libc binutils-avr"
 
 CONFIG_MAGIC = 0x3143464C  # "LFC1"
@@ -142,63 +136,18 @@ def build(program: str = "robot") -> str:
     return os.path.join(folder, f"{program}.elf")
 
 
-@dataclasses.dataclass(frozen=True)
-class ElfInfo:
-    """An AVR program: its flash and RAM use [bytes], the addresses of its globals (data space) and their sizes."""
-
-    path: str
-    flash_bytes: int
-    ram_bytes: int
-    symbols: dict[str, int]
-    sizes: dict[str, int]
+ElfInfo = Program  # the twin's firmware as a program (twin.pil.program)
 
 
-def check_elf(path: str, need: tuple[str, ...] = ()) -> ElfInfo:
-    """An ELF built for the ATmega328P with the symbols ``need``, or a one-line TwinError saying why not."""
-    from elftools.common.exceptions import ELFError
-    from elftools.elf.elffile import ELFFile
-
-    input_file(path, "firmware file")
-    try:
-        with open(path, "rb") as f:
-            elf = ELFFile(f)
-            machine, arch, device = elf["e_machine"], elf["e_flags"] & 0x7F, _device_name(elf)
-            symtab = elf.get_section_by_name(".symtab")
-            symbols = {s.name: int(s["st_value"]) for s in symtab.iter_symbols() if s.name} if symtab else None
-            sizes = {s.name: int(s["st_size"]) for s in symtab.iter_symbols() if s.name} if symtab else {}
-            size = {s.name: s["sh_size"] for s in elf.iter_sections()}
-    except (ELFError, struct.error, ValueError) as e:
-        raise TwinError(f"{path}: not a readable ELF file ({e})") from None
-    except OSError as e:
-        raise TwinError(f"{path}: cannot read it ({e.strerror or e})") from None
-    if machine != "EM_AVR":
-        raise TwinError(f"{path}: built for {str(machine).replace('EM_', '')}, not an AVR; build it with "
-                        f"avr-gcc -mmcu={MCU}")
-    if arch != 5:
-        raise TwinError(f"{path}: built for avr{arch}, not the ATmega328P's avr5; build it with -mmcu={MCU}")
-    if device and device != MCU:
-        raise TwinError(f"{path}: built for the {device}, not the {MCU}; build it with -mmcu={MCU}")
-    if symbols is None:
-        raise TwinError(f"{path}: has no symbol table (stripped?); the twin reads the firmware's globals by name")
-    vectors = [int(m.group(1)) for n in symbols if (m := re.fullmatch(r"__vector_(\d+)", n))]
-    if vectors and max(vectors) + 1 != VECTORS:
-        raise TwinError(f"{path}: has {max(vectors) + 1} interrupt vectors, the {MCU} has {VECTORS}: it was "
-                        f"built for another MCU; build it with -mmcu={MCU}")
-    missing = [n for n in need if n not in symbols]
+def check_elf(path: str, need: tuple[str, ...] = ()) -> Program:
+    """A program built for the ATmega328P (:func:`twin.pil.program.load_program`: ELF or Intel HEX) with the globals
+    ``need``, or a one-line TwinError saying why not."""
+    program = load_program(path)
+    if need and not program.symbols:
+        raise TwinError(f"{path}: has no symbol table ({'a HEX file' if program.kind == 'hex' else 'stripped?'}); the "
+                        "twin reads its firmware's globals by name")
+    missing = [n for n in need if n not in program.symbols]
     if missing:
         raise TwinError(f"{path}: has no {', '.join(missing)}; the twin traces each tick from these globals of "
                         "twin/csrc/firmware/avr/main.c, so build the firmware from that source")
-    data = {n: v - 0x800000 for n, v in symbols.items() if v >= 0x800000}
-    return ElfInfo(path, size.get(".text", 0) + size.get(".data", 0), size.get(".data", 0) + size.get(".bss", 0), data,
-                   {n: sizes[n] for n in data})
-
-
-def _device_name(elf) -> str | None:
-    """The MCU avr-gcc wrote in the .note.gnu.avr.deviceinfo note, or simavr's .mmcu section, if there is one."""
-    for name in (".note.gnu.avr.deviceinfo", ".mmcu"):
-        section = elf.get_section_by_name(name)
-        if section is not None:
-            found = re.findall(rb"(at(?:mega|tiny|xmega)[0-9a-z]+)", section.data())
-            if found:
-                return found[-1].decode()
-    return None
+    return program

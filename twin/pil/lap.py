@@ -25,12 +25,16 @@ from twin.core.closed_loop import check_seed, setup
 from twin.model.control import CALIBRATE, IDLE, RUN
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.maze import refuse_maze
 from twin.core.outcomes import Outcome, Status, outcome_of
 from twin.errors import TwinError
 from twin.pil.mcu import Mcu, state_size
 from twin.core.variant import Variant
 from twin.telemetry.wire import LineSplitter, WireError, decode
 
+BOARD_SENSORS = 5  # LF_BOARD_SENSORS: the 3pi's own sensor lines, PC0..PC4
+BUTTON_B = 2  # lf_avr_buttons: A 1, B 2, C 4
+TRIMMER_V = 2.5  # the user trimmer on ADC7, at mid travel [V]
 PIL_MAGIC = core.MAGIC + 1.0  # the C callback acts on core.MAGIC only: this head is the glue's
 CHUNK_S = 0.1  # simulated seconds per call into the glue: Python judges the lap and drains the UART this often
 TELEMETRY_EVERY = 2  # one sample line every 2 ticks, as the emulator's default
@@ -95,15 +99,18 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
     params, sensor = lap.params, lap.sensor
     elf = runnable_firmware(twin, elf_path)
     model = twin.model()
+    refuse_maze(twin.track, "the twin's own firmware")
     data = mujoco.MjData(model)
     judge = LapJudge(twin.track, limits, keep_trace)
-    telemetry = _Telemetry(on_line)
+    telemetry = Telemetry(on_line)
     with Mcu(elf) as mcu:
         mcu.eeprom(fw.config_image(params, sensor.timeout_us, telemetry_every))
-        sim = _place(model, data, twin, lap, seed)
+        # more than the board's five sensors take the LCD's control lines: the LCD is unplugged (board_3pi.h)
+        mcu.board(params.count <= BOARD_SENSORS, twin.physics().supply_voltage, TRIMMER_V, 0)
+        sim = place_robot(model, data, twin, lap, seed)
         mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
         steps = max(1, round(CHUNK_S / model.opt.timestep))
-        cal_min, cal_max = [], []
+        cal_min, cal_max, overruns_before = [], [], 0
         if why := turn_too_long(params, limits):
             judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         else:
@@ -115,22 +122,23 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
                 judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         if not judge.done:
             rng = sim.rng
-            sim = _place(model, data, twin, lap, seed)  # put back on the start line: MuJoCo's time 0
+            sim = place_robot(model, data, twin, lap, seed)  # put back on the start line: MuJoCo's time 0
             sim.rng = rng  # the noise stream carries on, as the C loop's does
             mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
             mcu.zero_time()
             mcu.reset_stats()
+            overruns_before = int.from_bytes(mcu.peek("fw_overruns", 2), "little")  # the turn's ten-read ticks overrun
             telemetry.offset = 0.0
-            mcu.button(True)
+            mcu.buttons(BUTTON_B)
             _drive(mcu, data, sim, judge, telemetry, steps)
         status = mcu.status()
-        overruns = int.from_bytes(mcu.peek("fw_overruns", 2), "little")
+        overruns = (int.from_bytes(mcu.peek("fw_overruns", 2), "little") - overruns_before) % 65536
         dropped = int.from_bytes(mcu.peek("uart_dropped", 2), "little") if "uart_dropped" in elf.symbols else 0
     return judge.result(params.count, cal_min, cal_max, lap.values), _report(elf, params.dt_s, status, overruns, dropped,
                                                                            telemetry)
 
 
-def _report(elf: fw.ElfInfo, dt_s: float, status, overruns: int, dropped: int, telemetry: "_Telemetry") -> McuReport:
+def _report(elf: fw.ElfInfo, dt_s: float, status, overruns: int, dropped: int, telemetry: "Telemetry") -> McuReport:
     period = round(dt_s * fw.F_CPU_HZ)
     return McuReport(
         mcu=fw.MCU, board=fw.BOARD, f_cpu_hz=fw.F_CPU_HZ, elf=elf.path, flash_bytes=elf.flash_bytes,
@@ -145,7 +153,7 @@ def _report(elf: fw.ElfInfo, dt_s: float, status, overruns: int, dropped: int, t
     )
 
 
-def _place(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: Variant, seed: int) -> core.Sim:
+def place_robot(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: Variant, seed: int) -> core.Sim:
     """The robot on the start line at time 0, with a fresh head the glue (not the C callback) owns."""
     mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
     sim = setup(data.userdata, model, twin, lap.params, lap.sensor, seed, lap.physics)
@@ -153,12 +161,14 @@ def _place(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: V
     return sim
 
 
-class _Telemetry:
+class Telemetry:
     """The UART's bytes as lines (cut by the wire's own :class:`LineSplitter`): counted, checked against the wire
-    format, handed on. A line longer than any wire line is counted as bad and not handed on."""
+    format (unless ``wire`` is False: any program's own lines), handed on. A line longer than any wire line is
+    counted as bad and not handed on."""
 
-    def __init__(self, on_line: Callable[[float, str], None] | None):
+    def __init__(self, on_line: Callable[[float, str], None] | None, wire: bool = True):
         self.on_line, self.splitter, self.lines, self.bad, self.offset = on_line, LineSplitter(), 0, 0, 0.0
+        self.wire = wire
 
     def take(self, data: bytes, t: float) -> None:
         for raw in self.splitter.feed(data):
@@ -168,14 +178,15 @@ class _Telemetry:
                 continue
             line = raw.decode("ascii", errors="replace")
             try:
-                decode(line)
+                if self.wire:
+                    decode(line)
             except WireError:
                 self.bad += 1
             if self.on_line:
                 self.on_line(t + self.offset, line)
 
 
-def _advance(mcu: Mcu, data: mujoco.MjData, telemetry: _Telemetry, steps: int) -> tuple[Outcome, str] | None:
+def advance(mcu: Mcu, data: mujoco.MjData, telemetry: Telemetry, steps: int) -> tuple[Outcome, str] | None:
     """One chunk in lockstep; (failure, detail) if the lap cannot go on (stalled, diverged, refused)."""
     status, why = mcu.lockstep(steps)
     core.flush_mujoco_log()
@@ -187,12 +198,12 @@ def _advance(mcu: Mcu, data: mujoco.MjData, telemetry: _Telemetry, steps: int) -
     return None
 
 
-def _calibrate(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int,
+def _calibrate(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: Telemetry, steps: int,
                limits: LapLimits) -> None:
     """Power-up to the end of the firmware's calibration turn (its mode leaves CALIBRATE)."""
     telemetry.offset = 0.0
     while True:
-        failure = _advance(mcu, data, telemetry, steps)
+        failure = advance(mcu, data, telemetry, steps)
         if failure:
             judge.fail(*failure, float(data.time), 0.0)
             return
@@ -212,13 +223,13 @@ def _calibrate(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, te
             return
 
 
-def _drive(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: _Telemetry, steps: int) -> None:
+def _drive(mcu: Mcu, data: mujoco.MjData, sim: core.Sim, judge: LapJudge, telemetry: Telemetry, steps: int) -> None:
     """The lap: button B held until the firmware runs, then chunks judged until the lap ends."""
     consumed, pressed = 0, True
     while not judge.done:
-        failure = _advance(mcu, data, telemetry, steps)
+        failure = advance(mcu, data, telemetry, steps)
         if pressed and mcu.state().mode == RUN:
-            mcu.button(False)
+            mcu.buttons(0)
             pressed = False
         try:
             judge.feed(core.records_since(data.userdata, sim, consumed))

@@ -3,7 +3,9 @@ bytes) against the glue's layout table (``lf_avr_layout``, twin/csrc/pil/avr_lay
 
 * ``avr.lf_state``: the firmware's state as avr-gcc lays it out in the MCU's RAM, :class:`AvrFwState`;
 * ``avr.lf_config``: the EEPROM image :func:`twin.pil.firmware.config_image` packs (``config.h``);
-* ``lf_avr_status``: the MCU's figures, :class:`McuStatus`.
+* ``lf_avr_status``: the MCU's figures, :class:`McuStatus`;
+* ``lf_lcd_frame``, ``lf_note``, ``lf_led_event``, ``lf_board_status``: what the board shows (:class:`LcdFrame`,
+  :class:`Note`, :class:`LedEvent`, :class:`BoardStatus`).
 
 The glue's copies of the firmware's structs are in turn compiled against the firmware's headers with avr-gcc by
 ``tests/test_pil_layout.py``.
@@ -12,7 +14,7 @@ The glue's copies of the firmware's structs are in turn compiled against the fir
 from __future__ import annotations
 
 import ctypes
-from ctypes import c_double, c_int64, c_uint64
+from ctypes import c_double, c_int32, c_int64, c_uint8, c_uint32, c_uint64
 
 from twin.core import native as core
 from twin.pil.firmware import CONFIG_BYTES, config_layout
@@ -25,7 +27,33 @@ class McuStatus(ctypes.Structure):
 
     _fields_ = [("cycle", c_uint64), ("ticks", c_int64), ("busy_max", c_uint64), ("busy_sum", c_uint64),
                 ("busy_ticks", c_int64), ("uart_lost", c_int64), ("read_error_max_us", c_double),
-                ("read_error_sum_us", c_double), ("read_errors", c_int64)]
+                ("read_error_sum_us", c_double), ("read_errors", c_int64), ("awake", c_uint64)]
+
+
+class LcdFrame(ctypes.Structure):
+    """``lf_lcd_frame``: one screen of the LCD at a quiet moment: character codes (line 0, then 1), custom characters."""
+
+    _fields_ = [("cycle", c_uint64), ("text", c_uint8 * 16), ("cgram", c_uint8 * 64), ("on", c_int32), ("pad", c_int32)]
+
+
+class Note(ctypes.Structure):
+    """``lf_note``: a note of the buzzer: cycles (end 0: still sounding), frequency [Hz], PWM duty 0..1."""
+
+    _fields_ = [("start", c_uint64), ("end", c_uint64), ("hz", c_double), ("duty", c_double)]
+
+
+class LedEvent(ctypes.Structure):
+    """``lf_led_event``: the user LEDs after a change."""
+
+    _fields_ = [("cycle", c_uint64), ("red", c_int32), ("green", c_int32)]
+
+
+class BoardStatus(ctypes.Structure):
+    """``lf_board_status``: the buttons' polling, the motors' last drive, unmodelled peripherals used, what shows now."""
+
+    _fields_ = [("last_poll", c_uint64), ("polls", c_int64), ("last_drive", c_uint64), ("used", c_uint32),
+                ("buttons", c_int32), ("red", c_int32), ("green", c_int32), ("note", Note), ("frames_lost", c_int64),
+                ("notes_lost", c_int64), ("leds_lost", c_int64)]
 
 
 class AvrFwState(ctypes.Structure):
@@ -46,7 +74,9 @@ def mirrors() -> dict[str, tuple[int, int]]:
     """{"struct" or "struct.field": (offset, size) [bytes]} as Python lays out what ``lf_avr_layout`` lists."""
     config = {"avr.lf_config": (0, CONFIG_BYTES)}
     config.update({f"avr.lf_config.{name}": at for name, at in config_layout().items()})
-    return {**_fields("avr.lf_state", AvrFwState), **config, **_fields("lf_avr_status", McuStatus)}
+    return {**_fields("avr.lf_state", AvrFwState), **config, **_fields("lf_avr_status", McuStatus),
+            **_fields("lf_lcd_frame", LcdFrame), **_fields("lf_note", Note), **_fields("lf_led_event", LedEvent),
+            **_fields("lf_board_status", BoardStatus)}
 
 
 def check_glue(lib: ctypes.CDLL) -> None:

@@ -1,9 +1,10 @@
-"""An emulated ATmega328P running a firmware ELF (simavr, through the C glue ``twin.pil._lfavr``).
+"""An emulated ATmega328P running a program on the 3pi's board (simavr, through the C glue ``twin.pil._lfavr``).
 
-:class:`Mcu` loads a program and gives its RAM by symbol (``peek``/``poke``), its EEPROM, and, attached to a
-simulation, the lockstep with MuJoCo (``twin/csrc/pil``; ``avr_glue.h`` lists its files). Without simavr the glue is
-not built, and opening an MCU says what to install. The glue's structs are checked when it loads
-(:mod:`twin.pil.layout`).
+:class:`Mcu` loads a program's flash image (:class:`twin.pil.program.Program`, from an ELF or a HEX file) and gives
+its RAM (by symbol where the program has them), its EEPROM, the board's buttons and what the board shows (LCD
+screens, buzzer notes, LEDs), and, attached to a simulation, the lockstep with MuJoCo (``twin/csrc/pil``;
+``avr_glue.h`` lists its files). Without simavr the glue is not built, and opening an MCU says what to install. The
+glue's structs are checked when it loads (:mod:`twin.pil.layout`).
 """
 
 from __future__ import annotations
@@ -11,14 +12,15 @@ from __future__ import annotations
 import ctypes
 import glob
 import os
-from ctypes import c_char_p, c_double, c_int32, c_int64, c_uint32, c_uint64, c_void_p
+from ctypes import c_char_p, c_double, c_int32, c_int64, c_uint16, c_uint32, c_uint64, c_void_p
 
 import mujoco
 
 from twin.core import native as core
 from twin.core.outcomes import Status
-from twin.pil.firmware import F_CPU_HZ, MCU, ElfInfo
-from twin.pil.layout import LIBRARY, AvrFwState, McuStatus, check_glue
+from twin.pil.firmware import F_CPU_HZ
+from twin.pil.layout import LIBRARY, AvrFwState, BoardStatus, LcdFrame, LedEvent, McuStatus, Note, check_glue
+from twin.pil.program import MCU, TRACE_SYMBOLS, Program
 from twin.errors import TwinError
 
 INSTALL_SIMAVR = ("processor in the loop needs simavr: apt-get install simavr libsimavr-dev, then pip install -e . "
@@ -49,11 +51,11 @@ def glue() -> ctypes.CDLL:
     lib.lf_set_ray.argtypes = [c_void_p]
     lib.lf_set_ray(core.mujoco_function("mj_ray"))
     p = ctypes.POINTER
-    lib.lf_avr_open.argtypes = [c_char_p, c_char_p, c_uint32, c_char_p, c_int32]
+    lib.lf_avr_open.argtypes = [c_char_p, c_uint32, c_char_p, c_uint32, c_char_p, c_uint32, c_char_p, c_int32]
     lib.lf_avr_open.restype = c_void_p
     lib.lf_avr_close.argtypes = [c_void_p]
-    lib.lf_avr_symbol.argtypes = [c_void_p, c_char_p]
-    lib.lf_avr_symbol.restype = c_int32
+    lib.lf_avr_trace_globals.argtypes = [c_void_p, c_uint16, c_uint16, c_uint16, c_uint16]
+    lib.lf_avr_board.argtypes = [c_void_p, c_int32, c_double, c_double, c_int64]
     lib.lf_avr_eeprom.argtypes = [c_void_p, c_char_p, c_uint32]
     lib.lf_avr_eeprom.restype = c_int32
     lib.lf_avr_peek.argtypes = [c_void_p, c_uint32, c_char_p, c_uint32]
@@ -65,7 +67,7 @@ def glue() -> ctypes.CDLL:
     lib.lf_avr_run_cycles.restype = c_int32
     lib.lf_avr_attach.argtypes = [c_void_p, c_void_p, c_void_p, c_void_p, c_double]
     lib.lf_avr_zero_time.argtypes = lib.lf_avr_reset_stats.argtypes = [c_void_p]
-    lib.lf_avr_button.argtypes = [c_void_p, c_int32]
+    lib.lf_avr_buttons.argtypes = [c_void_p, c_int32]
     lib.lf_avr_state.argtypes = [c_void_p, p(core.FwState)]
     lib.lf_avr_state.restype = c_int32
     lib.lf_avr_lockstep.argtypes = [c_void_p, c_void_p, c_void_p, c_int64]
@@ -75,20 +77,32 @@ def glue() -> ctypes.CDLL:
     lib.lf_avr_uart.argtypes = [c_void_p, c_char_p, c_int32]
     lib.lf_avr_uart.restype = c_int32
     lib.lf_avr_status_of.argtypes = [c_void_p, p(McuStatus)]
+    lib.lf_avr_board_status.argtypes = [c_void_p, p(BoardStatus)]
+    for name, kind in (("lf_avr_lcd_frames", LcdFrame), ("lf_avr_notes", Note), ("lf_avr_leds", LedEvent)):
+        getattr(lib, name).argtypes = [c_void_p, p(kind), c_int32]
+        getattr(lib, name).restype = c_int32
     _lib = lib
     return lib
 
 
 class Mcu:
-    """One emulated MCU running the program ``elf`` (checked by :func:`twin.pil.firmware.check_elf`)."""
+    """One emulated MCU running ``program`` (:func:`twin.pil.program.load_program`). The twin's own firmware (a program
+    with the traced globals) is traced from its RAM at every tick; any other program runs on the board alone."""
 
-    def __init__(self, elf: ElfInfo, mcu: str = MCU, f_cpu_hz: int = F_CPU_HZ):
-        self.lib, self.elf, self.f_cpu_hz = glue(), elf, f_cpu_hz
+    def __init__(self, program: Program, mcu: str = MCU, f_cpu_hz: int = F_CPU_HZ):
+        self.lib, self.program, self.f_cpu_hz = glue(), program, f_cpu_hz
         err = ctypes.create_string_buffer(256)
-        self.handle = self.lib.lf_avr_open(elf.path.encode(), mcu.encode(), f_cpu_hz, err, len(err))
+        self.handle = self.lib.lf_avr_open(program.flash, len(program.flash), program.eeprom or None,
+                                           len(program.eeprom), mcu.encode(), f_cpu_hz, err, len(err))
         if not self.handle:
-            raise TwinError(f"{elf.path}: {err.value.decode(errors='replace')}")
+            raise TwinError(f"{program.path}: {err.value.decode(errors='replace')}")
+        if program.traced:
+            self.lib.lf_avr_trace_globals(self.handle, *(program.symbols[n] for n in TRACE_SYMBOLS))
         self._attached: tuple = ()
+
+    @property
+    def elf(self) -> Program:  # the name the twin firmware's callers know it by
+        return self.program
 
     def close(self) -> None:
         if self.handle:
@@ -102,10 +116,9 @@ class Mcu:
         self.close()
 
     def address(self, name: str) -> int:
-        at = self.lib.lf_avr_symbol(self.handle, name.encode())
-        if at < 0:
-            raise TwinError(f"{self.elf.path}: has no global named {name}")
-        return at
+        if name not in self.program.symbols:
+            raise TwinError(f"{self.program.path}: has no global named {name}")
+        return self.program.symbols[name]
 
     def peek(self, name_or_address: str | int, n: int) -> bytes:
         at = self.address(name_or_address) if isinstance(name_or_address, str) else name_or_address
@@ -149,13 +162,46 @@ class Mcu:
     def reset_stats(self) -> None:
         self.lib.lf_avr_reset_stats(self.handle)
 
-    def button(self, pressed: bool) -> None:
-        self.lib.lf_avr_button(self.handle, int(pressed))
+    def buttons(self, pressed: int) -> None:
+        """Hold the buttons in ``pressed`` (A 1, B 2, C 4) and let the others go."""
+        self.lib.lf_avr_buttons(self.handle, int(pressed))
+
+    def board(self, lcd_plugged: bool, battery_v: float, trimmer_v: float, trace_every: int) -> None:
+        """The board's set-up: the LCD plugged in (else its lines are sensor lines), the battery voltage on ADC6
+        (through its 2/3 divider) and the trimmer's on ADC7 [V], a physics trace record every ``trace_every`` steps
+        for a program that is not traced from its RAM (0: none)."""
+        self.lib.lf_avr_board(self.handle, int(lcd_plugged), battery_v, trimmer_v, trace_every)
+
+    def board_status(self) -> BoardStatus:
+        out = BoardStatus()
+        self.lib.lf_avr_board_status(self.handle, ctypes.byref(out))
+        return out
+
+    def _drain(self, name: str, kind: type, cap: int = 512) -> list:
+        out = []
+        while True:
+            buf = (kind * cap)()
+            n = getattr(self.lib, name)(self.handle, buf, cap)
+            out += [buf[i] for i in range(n)]
+            if n < cap:
+                return out
+
+    def lcd_frames(self) -> list[LcdFrame]:
+        """The LCD's screens kept since the last call (each taken when the program had been quiet)."""
+        return self._drain("lf_avr_lcd_frames", LcdFrame)
+
+    def notes(self) -> list[Note]:
+        """The buzzer's notes that ended since the last call."""
+        return self._drain("lf_avr_notes", Note)
+
+    def leds(self) -> list[LedEvent]:
+        """The LEDs' changes since the last call."""
+        return self._drain("lf_avr_leds", LedEvent)
 
     def state(self) -> core.FwState:
         out = core.FwState()
         if self.lib.lf_avr_state(self.handle, ctypes.byref(out)):
-            raise TwinError(f"{self.elf.path}: has no fw_state")
+            raise TwinError(f"{self.program.path}: has no fw_state")
         return out
 
     def uart(self) -> bytes:

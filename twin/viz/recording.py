@@ -20,6 +20,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from PIL import Image
 
+from mjcf.maze import Maze
 from mjcf.track import FloorTexture, Track
 from lf_common.errors import OutputError
 from lf_common.files import atomic_file, check_output_file, rrd_is_ours
@@ -33,11 +34,15 @@ RELAY_CLOSE_S = 120.0  # [s] for rerun to finish a recording once it is disconne
 MAP_PIXEL_M = 0.004  # the floor image in the recording: 4 mm pixels keep a default-track file ~0.2 MB
 
 
-def lap_blueprint(count: int) -> rrb.Blueprint:
+def lap_blueprint(count: int, shows: bool = False) -> rrb.Blueprint:
+    robot = [rrb.TextLogView(name="LCD", origin="/robot/lcd"),
+             rrb.TimeSeriesView(name="buzzer [Hz]", origin="/robot/buzzer"),
+             rrb.TimeSeriesView(name="LEDs (1 lit)", origin="/robot/led")] if shows else []
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial2DView(name="track", origin="/track"),
             rrb.Vertical(
+                *robot,
                 rrb.TimeSeriesView(name="line angle e [rad]", origin="/control/e"),
                 rrb.TimeSeriesView(name="speed v [m/s]", origin="/control/v"),
                 rrb.TimeSeriesView(name="turn rate ω [rad/s]", origin="/control/omega"),
@@ -94,8 +99,16 @@ def log_lap(rec: rr.RecordingStream, track: Track, texture: FloorTexture, result
 def log_track(rec: rr.RecordingStream, track: Track, texture: FloorTexture) -> None:
     m = _Map(texture)
     rr.log("track/floor", rr.Image(m.image), static=True, recording=rec)
-    centre = m.px(np.vstack([track.centre, track.centre[:1]]))
-    rr.log("track/centre_line", rr.LineStrips2D([centre], radii=0.3, colors=[[40, 120, 230]]), static=True, recording=rec)
+    if isinstance(track, Maze):  # its segments, and the finish spot
+        strips = [m.px(seg) for seg in track.segments_xy]
+        rr.log("track/centre_line", rr.LineStrips2D(strips, radii=0.3, colors=[[40, 120, 230]]), static=True,
+               recording=rec)
+        rr.log("track/finish", rr.Points2D(m.px(track.finish_xy[None]), radii=3.0, colors=[[230, 60, 40]],
+                                           labels=["finish"]), static=True, recording=rec)
+    else:
+        centre = m.px(np.vstack([track.centre, track.centre[:1]]))
+        rr.log("track/centre_line", rr.LineStrips2D([centre], radii=0.3, colors=[[40, 120, 230]]), static=True,
+               recording=rec)
     start = m.px(track.centre[:1])
     rr.log("track/start", rr.Points2D(start, radii=3.0, colors=[[40, 200, 80]], labels=["start"]), static=True, recording=rec)
 
@@ -209,16 +222,39 @@ def recording_file(out_path: str, blueprint: rrb.Blueprint) -> Iterator[rr.Recor
 
 
 def save_laps(save: str | None, view: bool, track: Track, texture: FloorTexture, results: Sequence[LapResult],
-              names: Sequence[str]) -> str | None:
-    """Laps to a saved recording and/or the viewer (see :func:`recording`); returns the saved path, if any."""
+              names: Sequence[str], shows: dict | None = None) -> str | None:
+    """Laps to a saved recording and/or the viewer (see :func:`recording`); returns the saved path, if any.
+    ``shows``: what the robot showed during the first lap (:func:`log_shows`)."""
     if not save and not view:
         return None
     count = results[0].trace.count if results and results[0].trace else 8
-    with recording(save, view, lap_blueprint(count)) as rec:
+    with recording(save, view, lap_blueprint(count, shows is not None)) as rec:
         log_track(rec, track, texture)
         for r, n in zip(results, names):
             log_lap(rec, track, texture, r, n)
+        if shows is not None:
+            log_shows(rec, shows)
     return os.path.abspath(save) if save else None
+
+
+def log_shows(rec: rr.RecordingStream, shows: dict) -> None:
+    """What the robot showed, on the lap's timeline [s]: ``lcd`` [(t, text)] as a text log under /robot/lcd, ``notes``
+    [(start, end, Hz)] as the buzzer's frequency under /robot/buzzer (0 between notes), ``leds`` [(t, red, green)]
+    as 0/1 series under /robot/led/red and /robot/led/green."""
+    for t, text in shows.get("lcd", ()):
+        rr.set_time(TIMELINE, duration=t, recording=rec)
+        rr.log("robot/lcd", rr.TextLog(" / ".join(line.rstrip() for line in text.split("\n"))), recording=rec)
+    rec.reset_time()
+    notes = shows.get("notes", ())
+    if notes:
+        t = np.array([x for a, b, _ in notes for x in (a, b)])
+        hz = np.array([x for _, _, f in notes for x in (f, 0.0)])
+        _series(rec, "robot/buzzer", t, hz)
+    leds = shows.get("leds", ())
+    if leds:
+        t = np.array([e[0] for e in leds])
+        _series(rec, "robot/led/red", t, np.array([float(e[1]) for e in leds]))
+        _series(rec, "robot/led/green", t, np.array([float(e[2]) for e in leds]))
 
 
 def save_charts(save: str | None, view: bool, charts: dict[str, str]) -> str | None:

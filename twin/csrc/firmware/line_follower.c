@@ -10,6 +10,7 @@ void lf_reset(lf_state *s, int32_t mode) {
   s->line_seen = 0;
   s->mode = mode;
   s->tick = 0;
+  s->call_reads = 0; /* a calibration call under way is dropped */
   s->e = 0;
   s->e_prev = 0;
   s->integral = 0;
@@ -25,16 +26,28 @@ void lf_calibrate_reset(lf_state *s, uint16_t timeout_us) {
     s->cal_min[i] = timeout_us;
     s->cal_max[i] = 0;
     s->value[i] = 0;
+    s->call_min[i] = s->call_max[i] = 0;
   }
+  s->call_reads = 0;
 }
 
-/* QTRSensors::calibrate, one reading per loop iteration: widen each sensor's [min, max]. */
+/* Pololu's calibration rule (libpololu-avr, PololuQTRSensors.cpp, calibrateOnOrOff): a call takes LF_CAL_READS
+ * readings; per sensor, the calibrated maximum rises to the call's smallest reading and the calibrated minimum falls
+ * to its largest, so one noise spike never widens the range. Each calibration tick is one call: its callers take
+ * LF_CAL_READS - 1 readings before lf_step takes the last (the C callback at the tick's pose, the MCU's program one
+ * read after another); a call cut short by lf_reset is dropped. */
 void lf_calibrate_update(lf_state *s, const uint16_t *raw, int32_t count) {
   int32_t i;
   for (i = 0; i < count; i++) {
-    if (raw[i] > s->cal_max[i]) s->cal_max[i] = raw[i];
-    if (raw[i] < s->cal_min[i]) s->cal_min[i] = raw[i];
+    if (s->call_reads == 0 || raw[i] > s->call_max[i]) s->call_max[i] = raw[i];
+    if (s->call_reads == 0 || raw[i] < s->call_min[i]) s->call_min[i] = raw[i];
   }
+  if (++s->call_reads < LF_CAL_READS) return;
+  for (i = 0; i < count; i++) {
+    if (s->call_min[i] > s->cal_max[i]) s->cal_max[i] = s->call_min[i];
+    if (s->call_max[i] < s->cal_min[i]) s->cal_min[i] = s->call_max[i];
+  }
+  s->call_reads = 0;
 }
 
 /* Eq. 8, as QTRSensors::readCalibrated: (raw - min) * 1000 / (max - min), clipped to 0..1000. */

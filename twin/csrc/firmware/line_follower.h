@@ -17,6 +17,7 @@ extern "C" {
 #endif
 
 #define LF_MAX_SENSORS 16
+#define LF_CAL_READS 10 /* readings per calibration call, as Pololu's QTRSensors::calibrate takes */
 #define LF_NOISE_THRESHOLD 50 /* readLine: calibrated values above this are averaged */
 #define LF_LINE_THRESHOLD 200 /* readLine: the line is seen if any value exceeds this */
 /* Tick counts saturate instead of wrapping: a quarter sweep at most 2^29 ticks (exact in float and double, and
@@ -65,6 +66,9 @@ typedef struct {
   lf_real v;                        /* forward-speed command after the ramp [m/s] */
   lf_real omega;                    /* Eq. 11 turn-rate command [rad/s] */
   lf_real duty_left, duty_right;    /* motor commands [-1, 1] */
+  uint16_t call_min[LF_MAX_SENSORS]; /* the calibration call under way: its smallest reading per sensor */
+  uint16_t call_max[LF_MAX_SENSORS]; /* and its largest */
+  int32_t call_reads;               /* its readings so far, 0..LF_CAL_READS - 1 */
 } lf_state;
 
 void lf_reset(lf_state *s, int32_t mode);

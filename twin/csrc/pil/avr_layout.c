@@ -1,5 +1,5 @@
 /* The layout of the structs Python mirrors for the processor in the loop (twin.pil.layout): every field's offset and
- * size, compared when the glue loads. The firmware's structs are named "avr.<its type>": the glue's copies of them as
+ * size, compared when the glue loads (the MCU's figures, and what the board shows: LCD screens, notes, LEDs). The firmware's structs are named "avr.<its type>": the glue's copies of them as
  * avr-gcc lays them out (no padding, lf_real a 32-bit float), which tests/test_pil_layout.py compiles against the
  * firmware's own headers with avr-gcc. */
 #include <stddef.h>
@@ -35,7 +35,8 @@ static const lf_field fields[] = {
   AVR_FIELD(lf_state, position), AVR_FIELD(lf_state, last_position), AVR_FIELD(lf_state, line_seen),
   AVR_FIELD(lf_state, mode), AVR_FIELD(lf_state, tick), AVR_FIELD(lf_state, e), AVR_FIELD(lf_state, e_prev),
   AVR_FIELD(lf_state, integral), AVR_FIELD(lf_state, v), AVR_FIELD(lf_state, omega), AVR_FIELD(lf_state, duty_left),
-  AVR_FIELD(lf_state, duty_right),
+  AVR_FIELD(lf_state, duty_right), AVR_FIELD(lf_state, call_min), AVR_FIELD(lf_state, call_max),
+  AVR_FIELD(lf_state, call_reads),
 
   WHOLE("avr.lf_config", avr_lf_config),
   AVR_FIELD(lf_config, magic), AVR_FIELD(lf_config, size), AVR_FIELD(lf_config, params.count),
@@ -52,7 +53,23 @@ static const lf_field fields[] = {
   LF_FIELD(lf_avr_status, cycle), LF_FIELD(lf_avr_status, ticks), LF_FIELD(lf_avr_status, busy_max),
   LF_FIELD(lf_avr_status, busy_sum), LF_FIELD(lf_avr_status, busy_ticks), LF_FIELD(lf_avr_status, uart_lost),
   LF_FIELD(lf_avr_status, read_error_max_us), LF_FIELD(lf_avr_status, read_error_sum_us),
-  LF_FIELD(lf_avr_status, read_errors),
+  LF_FIELD(lf_avr_status, read_errors), LF_FIELD(lf_avr_status, awake),
+
+  WHOLE("lf_lcd_frame", lf_lcd_frame),
+  LF_FIELD(lf_lcd_frame, cycle), LF_FIELD(lf_lcd_frame, text), LF_FIELD(lf_lcd_frame, cgram), LF_FIELD(lf_lcd_frame, on),
+  LF_FIELD(lf_lcd_frame, pad),
+
+  WHOLE("lf_note", lf_note),
+  LF_FIELD(lf_note, start), LF_FIELD(lf_note, end), LF_FIELD(lf_note, hz), LF_FIELD(lf_note, duty),
+
+  WHOLE("lf_led_event", lf_led_event),
+  LF_FIELD(lf_led_event, cycle), LF_FIELD(lf_led_event, red), LF_FIELD(lf_led_event, green),
+
+  WHOLE("lf_board_status", lf_board_status),
+  LF_FIELD(lf_board_status, last_poll), LF_FIELD(lf_board_status, polls), LF_FIELD(lf_board_status, last_drive),
+  LF_FIELD(lf_board_status, used), LF_FIELD(lf_board_status, buttons), LF_FIELD(lf_board_status, red),
+  LF_FIELD(lf_board_status, green), LF_FIELD(lf_board_status, note), LF_FIELD(lf_board_status, frames_lost),
+  LF_FIELD(lf_board_status, notes_lost), LF_FIELD(lf_board_status, leds_lost),
 };
 
 int32_t lf_avr_layout(const lf_field **out) {

@@ -3,12 +3,16 @@
  *   2. the MCU runs to the step's end: a sensor line it releases falls when the sensor physics says (avr_sensors.c),
  *      and the drive its motor lines give is integrated (avr_motors.c);
  *   3. each motor's voltage is the supply times its mean drive over the step;
- *   4. the ticks the firmware finished are traced (avr_trace.c), then mj_step2 with those voltages.
+ *   4. the board's step: the LCD's screen kept if the program has been quiet, the LEDs shown (avr_lcd.c,
+ *      avr_board.c); the trace: the ticks the twin's firmware finished, from its RAM (avr_trace.c), or for any other
+ *      program the physics every trace_every steps (avr_board.c); then mj_step2 with those voltages.
  * The MCU's clock never runs ahead of the physics by more than one instruction or one sleep: what it does at
  * cycle c happens when the physics is at the step holding c.
  *
- * A watchdog on simulated time ends the lap as stalled (LF_STALLED) when the MCU stops, no tick completes, a sensor
- * line is never released, or no motor compare value is written. */
+ * Any program ends the lap as stalled (LF_STALLED) when the MCU stops (sleeps with interrupts off) or crashes. For
+ * the twin's own firmware a watchdog on simulated time also does when no tick completes, a sensor line is never
+ * released, or no motor compare value is written; any other program may wait as long as it likes (Python's time
+ * limits end such a run). */
 #include <stdio.h>
 
 #include "avr_glue.h"
@@ -64,10 +68,6 @@ int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep) {
   lf_sim *s = a->s;
   int64_t k;
   int32_t fit;
-  if (!a->a_state || !a->a_raw || !a->a_tick_mode || !a->a_ticks) {
-    snprintf(a->message, sizeof a->message, "the firmware has no fw_state, fw_raw_us, fw_tick_mode or fw_ticks_done");
-    return LF_ERR_FIRMWARE;
-  }
   if (!lf_has_ray()) {
     snprintf(a->message, sizeof a->message, "mj_ray has not been handed over (lf_set_ray)");
     return LF_ERR_RAY;
@@ -96,12 +96,14 @@ int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep) {
       }
     }
     pil_drive_end(a, from);
-    pil_trace_ticks(a);
+    pil_lcd_step(a);
+    pil_board_step(a, from);
+    if (traced(a)) pil_trace_ticks(a);
     ((step_fn)step2)(m, d);
     power = lf_motor_power(m, d, s->actuator_left) + lf_motor_power(m, d, s->actuator_right);
     s->energy_j += h * power;
     s->last_time = d->time;
-    verdict = watchdog(a);
+    verdict = traced(a) ? watchdog(a) : LF_OK;
     if (verdict != LF_OK) return verdict;
   }
   return LF_OK;

@@ -1,5 +1,7 @@
-/* The MCU's lifetime: a firmware ELF loaded onto a fresh simavr ATmega328P with the board's hooks connected; its RAM
- * by symbol, its EEPROM, free runs (no physics attached) and button B. */
+/* The MCU's lifetime: a program's flash image (Python reads it from an ELF or an Intel HEX file, twin.pil.program)
+ * loaded onto a fresh simavr ATmega328P with the board's hooks connected; its RAM, its EEPROM, free runs (no physics
+ * attached) and the pushbuttons. Nothing here depends on the program's symbols: the twin's own firmware is told
+ * where its traced globals are (lf_avr_trace_globals), any other program runs without. */
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -8,6 +10,7 @@
 #include <simavr/avr_eeprom.h>
 #include <simavr/avr_extint.h>
 #include <simavr/avr_ioport.h>
+#include <simavr/avr_timer.h>
 #include <simavr/sim_io.h>
 #include <simavr/sim_irq.h>
 
@@ -26,27 +29,80 @@ static void no_sleep(avr_t *avr, avr_cycle_count_t how_long) {
   (void)how_long;
 }
 
-static uint16_t symbol(const lf_avr *a, const char *name) {
-  uint32_t i;
-  for (i = 0; i < a->firmware.symbolcount; i++)
-    if (!strcmp(a->firmware.symbol[i]->symbol, name) && a->firmware.symbol[i]->addr >= 0x800000u)
-      return (uint16_t)(a->firmware.symbol[i]->addr - 0x800000u);
-  return 0;
+static void chained_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+  write_hook *h = (write_hook *)param;
+  if (h->before) h->mine(avr, addr, v, h->a);
+  if (h->orig) h->orig(avr, addr, v, h->orig_param);
+  else avr->data[addr] = v;
+  if (!h->before) h->mine(avr, addr, v, h->a);
 }
 
-/* Load an ELF onto a fresh MCU. NULL with the reason in err if simavr cannot. */
-lf_avr *lf_avr_open(const char *elf_path, const char *mmcu, uint32_t f_cpu, char *err, int32_t errlen) {
+void pil_watch_write(lf_avr *a, uint16_t addr, avr_io_write_t fn, int before) {
+  avr_io_addr_t io = AVR_DATA_TO_IO(addr);
+  write_hook *h;
+  if (a->nhooks >= WRITE_HOOKS) abort(); /* a programming error of the glue: WRITE_HOOKS is sized for its hooks */
+  h = &a->hooks[a->nhooks++];
+  h->orig = a->avr->io[io].w.c, h->orig_param = a->avr->io[io].w.param, h->mine = fn, h->a = a, h->before = before;
+  a->avr->io[io].w.c = chained_write, a->avr->io[io].w.param = h;
+}
+
+/* simavr 1.6's timers (cores/sim_megax8.h) know no Timer1 WGM 10 and 11 (phase-correct PWM with TOP = ICR1 or OCR1A,
+ * the mode libpololu-avr's OrangutanBuzzer plays notes in: without it Timer1 never overflows and is_playing() waits
+ * for ever) nor the 8-bit timers' WGM 1 and 5, and it counts every phase-correct mode up to TOP and back to 0 in
+ * (TOP + 1) prescaled clocks instead of 2 TOP (datasheet, "Phase Correct PWM Mode"). The glue adds the missing modes
+ * and, while a timer is in a phase-correct mode, doubles its prescaler: overflows (and the notes they time) then come
+ * every 2 (TOP + 1) clocks, within 1/TOP of the MCU's period. */
+static const uint8_t tccr_a[3] = {TCCR0A, TCCR1A, TCCR2A}, tccr_b[3] = {TCCR0B, TCCR1B, TCCR2B};
+
+static int phase_correct(int k, int wgm) {
+  return k == 1 ? (wgm >= 1 && wgm <= 3) || (wgm >= 8 && wgm <= 11) : wgm == 1 || wgm == 5;
+}
+
+static void before_tccr(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+  lf_avr *a = (lf_avr *)param;
+  int k, i;
+  (void)avr;
+  for (k = 0; k < 3; k++) {
+    uint8_t ra = addr == tccr_a[k] ? v : reg(a, tccr_a[k]), rb = addr == tccr_b[k] ? v : reg(a, tccr_b[k]);
+    int wgm = (ra & 3) | ((rb >> 1) & (k == 1 ? 0xc : 0x4)), slow = phase_correct(k, wgm);
+    if (!a->timers[k] || (addr != tccr_a[k] && addr != tccr_b[k])) continue;
+    for (i = 1; i < 8; i++) /* CS 0: stopped; AVR_TIMER_EXTCLK_CHOOSE (0x80): the Tn pin clocks it */
+      if (a->cs_div[k][i] < 0x80) a->timers[k]->cs_div[i] = (uint8_t)(a->cs_div[k][i] + slow);
+  }
+}
+
+static void fix_timers(lf_avr *a) {
+  static const avr_timer_wgm_t fast8 = AVR_TIMER_WGM_FASTPWM8(), fast9 = AVR_TIMER_WGM_FASTPWM9(),
+                               fast10 = AVR_TIMER_WGM_FASTPWM10(), ocr = AVR_TIMER_WGM_OCPWM(),
+                               icr = AVR_TIMER_WGM_ICPWM();
+  avr_io_t *port;
+  int k;
+  for (port = a->avr->io_port; port; port = port->next) {
+    avr_timer_t *t = (avr_timer_t *)port;
+    if (!port->kind || strcmp(port->kind, "timer") || t->name < '0' || t->name > '2') continue;
+    k = t->name - '0';
+    a->timers[k] = t;
+    memcpy(a->cs_div[k], t->cs_div, sizeof t->cs_div);
+    t->wgm_op[1] = fast8; /* counted as a fast 8-bit PWM at twice the prescaler, as all phase-correct modes */
+    if (k == 1) t->wgm_op[2] = fast9, t->wgm_op[3] = fast10, t->wgm_op[10] = icr, t->wgm_op[11] = ocr;
+    else t->wgm_op[5] = ocr;
+  }
+  for (k = 0; k < 3; k++) {
+    pil_watch_write(a, tccr_a[k], before_tccr, 1);
+    pil_watch_write(a, tccr_b[k], before_tccr, 1);
+  }
+}
+
+/* A program's flash (and EEPROM) image onto a fresh MCU. NULL with the reason in err if simavr cannot. Python has
+ * checked that the image fits the MCU's flash: simavr aborts the process on one that does not. */
+lf_avr *lf_avr_open(const uint8_t *flash, uint32_t flash_size, const uint8_t *eeprom, uint32_t eeprom_size,
+                    const char *mmcu, uint32_t f_cpu, char *err, int32_t errlen) {
   lf_avr *a = (lf_avr *)calloc(1, sizeof(lf_avr));
   int i;
   avr_global_logger_set(logger);
   log_text[0] = 0;
   if (!a) {
     snprintf(err, (size_t)errlen, "out of memory");
-    return 0;
-  }
-  if (elf_read_firmware(elf_path, &a->firmware) != 0) {
-    snprintf(err, (size_t)errlen, "simavr cannot read it%s%s", log_text[0] ? ": " : "", log_text);
-    free(a);
     return 0;
   }
   a->avr = avr_make_mcu_by_name(mmcu);
@@ -56,26 +112,36 @@ lf_avr *lf_avr_open(const char *elf_path, const char *mmcu, uint32_t f_cpu, char
     return 0;
   }
   avr_init(a->avr);
+  if (flash_size > a->avr->flashend + 1u) {
+    snprintf(err, (size_t)errlen, "%u bytes of program do not fit the %s's %u bytes of flash", flash_size, mmcu,
+             a->avr->flashend + 1u);
+    avr_terminate(a->avr);
+    free(a);
+    return 0;
+  }
   a->avr->log = LOG_ERROR;
   a->avr->sleep = no_sleep;
-  /* INT0/INT1 share PD2 and PD3 with a sensor line and a motor's PWM line. In low-level mode (their reset state)
-   * simavr polls such a pin every cycle while it is low, whether or not the interrupt is enabled: ~85 % of the
-   * emulation's time. The firmware enables neither, so their level re-triggering cannot change what it does. */
+  /* INT0/INT1 share PD2 and PD3 with the LCD's RS line and a motor's PWM line. In low-level mode (their reset
+   * state) simavr polls such a pin every cycle while it is low, whether or not the interrupt is enabled: ~85 % of
+   * the emulation's time. A program that enables either gets a note (LF_USED_INT01). */
   avr_extint_set_strict_lvl_trig(a->avr, 0, 0);
   avr_extint_set_strict_lvl_trig(a->avr, 1, 0);
-  a->firmware.frequency = f_cpu;
   a->avr->frequency = f_cpu;
+  a->avr->vcc = a->avr->avcc = a->avr->aref = LF_VCC_MV; /* the 3pi's regulated 5 V, also its ADC reference */
   a->f_cpu = f_cpu;
-  avr_load_firmware(a->avr, &a->firmware);
-  a->avr->frequency = f_cpu;
+  avr_loadcode(a->avr, (uint8_t *)flash, flash_size, 0);
+  if (eeprom && eeprom_size && lf_avr_eeprom(a, eeprom, eeprom_size)) {
+    snprintf(err, (size_t)errlen, "its %u bytes of EEPROM data do not fit the %s's EEPROM", eeprom_size, mmcu);
+    lf_avr_close(a);
+    return 0;
+  }
+  fix_timers(a);
   pil_connect_uart(a);
   pil_connect_sensors(a);
   pil_connect_motors(a);
+  pil_connect_lcd(a);
+  pil_connect_board(a);
   for (i = 0; i < LF_BOARD_MAX_SENSORS; i++) a->refs[i].index = i;
-  a->a_state = symbol(a, "fw_state");
-  a->a_raw = symbol(a, "fw_raw_us");
-  a->a_tick_mode = symbol(a, "fw_tick_mode");
-  a->a_ticks = symbol(a, "fw_ticks_done");
   return a;
 }
 
@@ -85,10 +151,10 @@ void lf_avr_close(lf_avr *a) {
   free(a);
 }
 
-/* Data-space address of a global of the firmware, -1 if it has none by that name. */
-int32_t lf_avr_symbol(const lf_avr *a, const char *name) {
-  uint16_t at = symbol(a, name);
-  return at ? at : -1;
+/* The twin's own firmware: where its traced globals live (twin/csrc/firmware/avr/main.c); each finished tick is then
+ * traced from its RAM and the watchdog of lf_avr_lockstep applies. */
+void lf_avr_trace_globals(lf_avr *a, uint16_t state, uint16_t raw, uint16_t tick_mode, uint16_t ticks) {
+  a->a_state = state, a->a_raw = raw, a->a_tick_mode = tick_mode, a->a_ticks = ticks;
 }
 
 int32_t lf_avr_eeprom(lf_avr *a, const uint8_t *image, uint32_t size) {
@@ -133,13 +199,23 @@ int32_t lf_avr_run_until_clear(lf_avr *a, uint32_t addr, uint64_t max_cycles) {
   return 0;
 }
 
-/* Hold button B pressed (1) or let it go (0): pressed pulls the line low against the pull-up. */
-void lf_avr_button(lf_avr *a, int32_t pressed) {
+/* Hold the buttons in pressed (A 1, B 2, C 4) and let the others go. A held button pulls its line low through
+ * 1 kOhm: an input reads 0 (simavr's external drive beats the pull-up), an output still reads what the MCU drives. */
+void lf_avr_buttons(lf_avr *a, int32_t pressed) {
+  static const int pins[3] = LF_BUTTON_PINS;
   avr_ioport_external_t e;
-  e.name = name_of[LF_BUTTON_B_PORT];
-  e.mask = pressed ? (1u << LF_BUTTON_B_PIN) : 0;
+  int k;
+  e.name = 'B';
+  e.mask = 0;
   e.value = 0;
-  avr_ioctl(a->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL(name_of[LF_BUTTON_B_PORT]), &e);
-  avr_raise_irq(avr_io_getirq(a->avr, AVR_IOCTL_IOPORT_GETIRQ(name_of[LF_BUTTON_B_PORT]), LF_BUTTON_B_PIN),
-                pressed ? 0 : ((reg(a, port_of[LF_BUTTON_B_PORT]) >> LF_BUTTON_B_PIN) & 1u));
+  for (k = 0; k < 3; k++)
+    if (pressed & (1 << k)) e.mask |= (uint8_t)(1u << pins[k]);
+  avr_ioctl(a->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL('B'), &e);
+  a->board.buttons = pressed & 7;
+  for (k = 0; k < 3; k++) {
+    uint8_t bit = (uint8_t)(1u << pins[k]);
+    if (reg(a, DDRB) & bit) continue; /* an output: the MCU's drive wins */
+    if (pressed & (1 << k)) avr_raise_irq(avr_io_getirq(a->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), pins[k]), 0);
+    else if (reg(a, PORTB) & bit) avr_raise_irq(avr_io_getirq(a->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), pins[k]), 1);
+  }
 }

@@ -73,8 +73,8 @@ static void on_compare_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *pa
 void pil_connect_motors(lf_avr *a) {
   int i;
   for (i = 0; i < 2; i++) {
-    avr_register_io_write(a->avr, motors[i].ocra, on_compare_write, a);
-    avr_register_io_write(a->avr, motors[i].ocrb, on_compare_write, a);
+    pil_watch_write(a, motors[i].ocra, on_compare_write, 0);
+    pil_watch_write(a, motors[i].ocrb, on_compare_write, 0);
   }
 }
 
@@ -96,5 +96,6 @@ void pil_drive_end(lf_avr *a, uint64_t from) {
     double span = (double)(a->avr->cycle - from);
     double drive = span > 0 ? a->drive_sum[i] / span : a->drive_now[i];
     a->d->ctrl[i == 0 ? a->s->actuator_left : a->s->actuator_right] = drive * a->s->supply_voltage;
+    if (drive != 0.0) a->board.last_drive = a->avr->cycle;
   }
 }

@@ -32,11 +32,12 @@ static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
   before = a->ddr_seen[port];
   a->ddr_seen[port] = (uint8_t)value;
   if (port != LF_PORT_C) pil_motor_direction(a, port, (uint8_t)value); /* a motor line may have changed direction */
+  if (port == LF_PORT_D) pil_led_update(a);                              /* and an LED's line */
   for (i = 0; i < a->nsensor; i++) {
     uint8_t bit = (uint8_t)(1u << sensor_pins[i][1]);
     double raw_us;
     if (sensor_pins[i][0] != port || !(before & bit) || (value & bit)) continue;
-    a->released[i] = a->avr->cycle;
+    a->released[i] = a->board.last_release = a->avr->cycle;
     avr_cycle_timer_cancel(a->avr, line_falls, &a->refs[i]);
     if (!(reg(a, port_of[port]) & bit)) continue; /* released low: nothing was charged, the line stays low */
     if (!a->s || !kinematics_ready(a, i)) { /* no physics attached, or not yet stepped: a dark floor */

@@ -1,4 +1,4 @@
-/* What the glue reads back from the MCU. A tick the firmware finished (its fw_ticks_done counter moved) is traced into
+/* What the glue reads back from the MCU. A tick the twin's own firmware finished (its fw_ticks_done counter moved) is traced into
  * the head's ring from the firmware's own RAM (fw_state, fw_raw_us, fw_tick_mode, found by their ELF symbols), with
  * the CPU cycles spent awake since the previous tick. The UART's bytes are kept for Python to drain: they are the
  * robot's telemetry. */
@@ -23,6 +23,9 @@ int32_t lf_avr_state(const lf_avr *a, lf_state *out) {
   out->mode = st.mode, out->tick = st.tick;
   out->e = st.e, out->e_prev = st.e_prev, out->integral = st.integral, out->v = st.v, out->omega = st.omega;
   out->duty_left = st.duty_left, out->duty_right = st.duty_right;
+  memcpy(out->call_min, st.call_min, sizeof st.call_min);
+  memcpy(out->call_max, st.call_max, sizeof st.call_max);
+  out->call_reads = st.call_reads;
   return 0;
 }
 
@@ -72,6 +75,7 @@ void lf_avr_status_of(const lf_avr *a, lf_avr_status *status) {
   *status = a->status;
   status->cycle = a->avr->cycle;
   status->ticks = a->ticks_seen;
+  status->awake = a->busy;
 }
 
 static void on_uart(struct avr_irq_t *irq, uint32_t value, void *param) {

@@ -13,8 +13,7 @@
 
 #include <stdint.h>
 
-#include "twin_core.h"
-
+#include "lf_record.h"
 #include "lf_status.h" /* enum lf_lap_status: how a lap ended, beside the simulation's codes */
 
 /* Failure thresholds: twin.core.lap.LapLimits. Lengths [m], times [s]. */

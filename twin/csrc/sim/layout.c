@@ -18,6 +18,16 @@ static const lf_field fields[] = {
   LF_FIELD(lf_sim, rng), LF_FIELD(lf_sim, ticks), LF_FIELD(lf_sim, records_written), LF_FIELD(lf_sim, segment),
   LF_FIELD(lf_sim, phase_start_time), LF_FIELD(lf_sim, last_time), LF_FIELD(lf_sim, energy_j),
   LF_FIELD(lf_sim, offset_abs_sum_m), LF_FIELD(lf_sim, offset_abs_max_m), LF_FIELD(lf_sim, fw), LF_FIELD(lf_sim, raw),
+  LF_FIELD(lf_sim, judge_on), LF_FIELD(lf_sim, stop_raised), LF_FIELD(lf_sim, deadline_s),
+  LF_FIELD(lf_sim, judge),
+
+  LF_FIELD(lf_lap_limits, max_cross_track_m), LF_FIELD(lf_lap_limits, max_progress_jump_m),
+  LF_FIELD(lf_lap_limits, max_line_lost_s), LF_FIELD(lf_lap_limits, timeout_s),
+
+  LF_FIELD(lf_judge, limits), LF_FIELD(lf_judge, length_m), LF_FIELD(lf_judge, status), LF_FIELD(lf_judge, started),
+  LF_FIELD(lf_judge, records), LF_FIELD(lf_judge, u_last), LF_FIELD(lf_judge, s_last), LF_FIELD(lf_judge, t_seen),
+  LF_FIELD(lf_judge, prev_t), LF_FIELD(lf_judge, prev_u), LF_FIELD(lf_judge, prev_energy), LF_FIELD(lf_judge, abs_sum),
+  LF_FIELD(lf_judge, abs_max), LF_FIELD(lf_judge, end_t), LF_FIELD(lf_judge, end_u), LF_FIELD(lf_judge, end_energy),
 
   LF_FIELD(lf_record, time_s), LF_FIELD(lf_record, x_m), LF_FIELD(lf_record, y_m), LF_FIELD(lf_record, yaw_rad),
   LF_FIELD(lf_record, e_rad), LF_FIELD(lf_record, v_mps), LF_FIELD(lf_record, omega_radps),
@@ -38,6 +48,7 @@ static const lf_field fields[] = {
   LF_FIELD(lf_state, last_position), LF_FIELD(lf_state, line_seen), LF_FIELD(lf_state, mode), LF_FIELD(lf_state, tick),
   LF_FIELD(lf_state, e), LF_FIELD(lf_state, e_prev), LF_FIELD(lf_state, integral), LF_FIELD(lf_state, v),
   LF_FIELD(lf_state, omega), LF_FIELD(lf_state, duty_left), LF_FIELD(lf_state, duty_right),
+  LF_FIELD(lf_state, call_min), LF_FIELD(lf_state, call_max), LF_FIELD(lf_state, call_reads),
 
   LF_FIELD(lf_sensor_model, aperture_m), LF_FIELD(lf_sensor_model, half_angle_rad),
   LF_FIELD(lf_sensor_model, falloff_height_m), LF_FIELD(lf_sensor_model, t_unit_us),

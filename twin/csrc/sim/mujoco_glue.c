@@ -22,6 +22,11 @@ void lf_set_ray(void *fn) { ray_fn = (lf_ray_fn)fn; }
 
 int32_t lf_has_ray(void) { return ray_fn != 0; }
 
+/* The warning whose counter the callback raises to stop a decided lap: mujoco.batch.Batch.rollout (mjb_rollout) stops
+ * a simulation whose warning counters rise, the one way to end one simulation inside a batch call. MuJoCo raises this
+ * one only for a non-finite control, which the firmware never writes (its duties are finite and clamped). */
+#define LF_STOP_WARNING mjWARN_BADCTRL
+
 #define SIM_WORDS ((int64_t)((sizeof(lf_sim) + sizeof(mjtNum) - 1) / sizeof(mjtNum)))
 #define RECORD_WORDS ((int64_t)(sizeof(lf_record) / sizeof(mjtNum)))
 
@@ -79,8 +84,10 @@ double lf_motor_power(const mjModel *m, const mjData *d, int32_t a) {
   return fmax(0.0, d->ctrl[a] * current);
 }
 
-/* Sensor i's raw reading now (s->raw[i]), drawing its noise from s->rng; returns its height above the floor [m]. */
-double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
+/* Sensor i's raw reading now (s->raw[i]), drawing its noise from s->rng; returns its height above the floor [m].
+ * tan_half: tan(s->sensor.half_angle_rad), the footprint's growth with height (lf_footprint_radius), computed once a
+ * tick for all sensors. */
+static double read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i, double tan_half) {
   /* the world only (groups 0-1: the floor, obstacles); the robot's own geoms (2: visual, 3: collision) never block */
   static const mjtByte groups[mjNGROUP] = {1, 1, 0, 0, 0, 0};
   lf_texture tex;
@@ -103,17 +110,22 @@ double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
   height = ray_fn(m, d, origin, dir, groups, 1, s->sensor_body, &geom, normal);
   if (height >= 0.0)
     reflectance = lf_footprint_reflectance(&tex, origin[0] + height * dir[0], origin[1] + height * dir[1],
-                                           lf_footprint_radius(&s->sensor, height));
+                                           s->sensor.aperture_m + height * tan_half); /* lf_footprint_radius */
   else
     height = 0.0; /* nothing under the sensor: no light comes back */
   s->raw[i] = lf_raw_reading(&s->sensor, reflectance, height, lf_noise(&s->rng));
   return height;
 }
 
+double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
+  return read_sensor(m, d, s, i, tan(s->sensor.half_angle_rad));
+}
+
 void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
+  const double tan_half = tan(s->sensor.half_angle_rad);
   int32_t i;
   for (i = 0; i < s->nsensor; i++) {
-    double height = lf_read_sensor(m, d, s, i);
+    double height = read_sensor(m, d, s, i, tan_half);
     if (i == 0) *height0 = height;
   }
 }
@@ -227,12 +239,26 @@ void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
   lf_integrate_energy(m, d, s);
   if (!lf_tick_due(d, s)) return;
   mode = s->fw.mode;
-  lf_read_sensors(m, d, s, &height0);
+  if (s->fw.mode == LF_CALIBRATE) { /* a calibration call takes LF_CAL_READS readings, at this tick's pose */
+    int32_t k;
+    for (k = 1; k < LF_CAL_READS; k++) {
+      lf_read_sensors(m, d, s, &height0);
+      lf_calibrate_update(&s->fw, s->raw, s->nsensor);
+    }
+  }
+  lf_read_sensors(m, d, s, &height0); /* lf_step calibrates with the last of them */
   lf_step(&s->fw, &s->firmware, s->raw);
   d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
   s->ticks++;
   lf_write_record(m, d, s, mode, height0);
+  if (s->judge_on && !s->stop_raised) {
+    const lf_record *r = (const lf_record *)(s + 1) + (s->records_written - 1) % s->record_capacity;
+    if (lf_judge_feed(&s->judge, r) != LF_LAP_RUNNING || r->time_s > s->deadline_s) {
+      s->stop_raised = 1; /* decided, or past its deadline: end the rollout after this step (mj_step ignores it) */
+      d->warning[LF_STOP_WARNING].number++;
+    }
+  }
 }
 
 void lf_control_callback(const mjModel *m, mjData *d) {

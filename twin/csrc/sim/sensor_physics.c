@@ -6,6 +6,12 @@ double lf_footprint_radius(const lf_sensor_model *s, double height_m) {
   return s->aperture_m + height_m * tan(s->half_angle_rad);
 }
 
+/* The texel arithmetic is Python's (line_sensor.reflectance.footprint_reflectance), operation for operation, so the
+ * result is bit-identical; only what repeats is computed once: each column's dx^2, each row's dy^2, and rows that lie
+ * wholly outside the disc are skipped (q = (dx^2 + dy^2) / r^2 >= dy^2 / r^2 in floating point too: rounding is
+ * monotonic, so such a row adds nothing). */
+#define LF_FOOTPRINT_COLUMNS 128
+
 double lf_footprint_reflectance(const lf_texture *tex, double x, double y, double radius_m) {
   const double mpp = tex->metres_per_pixel;
   const double inv_r2 = 1.0 / (radius_m * radius_m); /* a multiply per texel, not a divide */
@@ -13,20 +19,28 @@ double lf_footprint_reflectance(const lf_texture *tex, double x, double y, doubl
   int32_t c1 = (int32_t)floor((x + radius_m - tex->origin_x) / mpp);
   int32_t r0 = (int32_t)floor(tex->height - (y + radius_m - tex->origin_y) / mpp);
   int32_t r1 = (int32_t)floor(tex->height - (y - radius_m - tex->origin_y) / mpp);
-  double sum = 0.0, weight = 0.0;
-  int32_t r, c;
+  double sum = 0.0, weight = 0.0, dx2[LF_FOOTPRINT_COLUMNS];
+  int32_t r, c, cached;
   if (c0 < 0) c0 = 0;
   if (r0 < 0) r0 = 0;
   if (c1 > tex->width - 1) c1 = tex->width - 1;
   if (r1 > tex->height - 1) r1 = tex->height - 1;
-  for (r = r0; r <= r1; r++) {
-    double dy = tex->origin_y + (tex->height - r - 0.5) * mpp - y;
+  cached = c1 - c0 < LF_FOOTPRINT_COLUMNS;
+  if (cached)
     for (c = c0; c <= c1; c++) {
       double dx = tex->origin_x + (c + 0.5) * mpp - x;
-      double q = (dx * dx + dy * dy) * inv_r2;
+      dx2[c - c0] = dx * dx;
+    }
+  for (r = r0; r <= r1; r++) {
+    const double dy = tex->origin_y + (tex->height - r - 0.5) * mpp - y, dy2 = dy * dy;
+    const uint8_t *row = tex->data + (int64_t)r * tex->width * tex->nchannel;
+    if (!(dy2 * inv_r2 < 1.0)) continue;
+    for (c = c0; c <= c1; c++) {
+      double dx = cached ? 0.0 : tex->origin_x + (c + 0.5) * mpp - x;
+      double q = ((cached ? dx2[c - c0] : dx * dx) + dy2) * inv_r2;
       if (q < 1.0) {
         double w = (1.0 - q) * (1.0 - q);
-        sum += w * tex->data[((int64_t)r * tex->width + c) * tex->nchannel];
+        sum += w * row[(int64_t)c * tex->nchannel];
         weight += w;
       }
     }

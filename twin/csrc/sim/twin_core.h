@@ -16,34 +16,15 @@
 #include <stdint.h>
 
 #include "../firmware/line_follower.h"
+#include "lap_judge.h"
+#include "lf_record.h"
 #include "lf_status.h"
 #include "sensor_physics.h"
 
 #define LF_MAGIC 1279676025.0  /* "LFTy": marks userdata the callback owns; other models are left alone */
-#define LF_LAYOUT_VERSION 5
-#define LF_RECORD_FIXED 20
+#define LF_LAYOUT_VERSION 7
 #define LF_SIGNATURE 8 /* model sizes in lf_sim.model_signature: see model_signature() in mujoco_glue.c */
 
-/* One line of the trace, written at every control tick. */
-typedef struct {
-  double time_s;            /* simulated time of the tick [s] */
-  double x_m, y_m, yaw_rad; /* centre of rotation (axle midpoint) and heading */
-  double e_rad;             /* Eq. 9 line angle */
-  double v_mps, omega_radps;/* Eqs. 10-11 commands after the ramp */
-  double u_left_v, u_right_v; /* motor voltages [V] */
-  double wheel_left_radps, wheel_right_radps; /* encoder wheel speeds [rad/s] */
-  double position;          /* readLine 0..(count-1)*1000 */
-  double line_seen;         /* 1 if any calibrated value > 200 */
-  double mode;              /* enum lf_mode before the tick */
-  double energy_j;          /* electrical energy drawn by both motors so far [J] */
-  double height_m;          /* sensor 0 height above the floor [m] */
-  double progress_m;        /* arc length of the nearest centre-line point, in [0, track length) */
-  double offset_m;          /* signed distance of the centre of rotation from the centre line, + left */
-  double offset_abs_sum_m;  /* sum of |offset| over the phase's ticks so far (mean = sum / ticks) */
-  double offset_abs_max_m;  /* largest |offset| in the phase so far */
-  double raw_us[LF_MAX_SENSORS];       /* raw RC readings */
-  double calibrated[LF_MAX_SENSORS];   /* Eq. 8 values 0..1000 */
-} lf_record;
 
 /* Per-simulation configuration (written by Python) and state (advanced by the callback). */
 typedef struct {
@@ -79,6 +60,14 @@ typedef struct {
   double offset_abs_sum_m, offset_abs_max_m; /* running cross-track statistics of the phase [m] */
   lf_state fw;
   uint16_t raw[LF_MAX_SENSORS];
+  /* the lap's judge in C (lap_judge.h), fed every record of a judged phase: Python starts it with the lap
+   * (judge_on 1); when it decides, or a record passes deadline_s, the callback raises a warning counter
+   * (LF_STOP_WARNING, mujoco_glue.c), which ends the simulation's mujoco.batch rollout at that step (Python's judge
+   * decides the same from the same records) */
+  int32_t judge_on;
+  int32_t stop_raised;            /* the callback raised the stop signal (once) */
+  double deadline_s;              /* simulated time past which the lap may stop undecided [s] (inf: never) */
+  lf_judge judge;
 } lf_sim;
 
 /* One field of a mirrored struct, for Python's load-time check: "struct.field", offsetof and sizeof [bytes]. */

@@ -86,7 +86,14 @@ int main(void) {
   send_header(line);
   for (;;) {
     wait_for_tick();
-    qtr_read(fw_raw_us, (uint8_t)config.params.count, config.timeout_us);
+    if (fw_state.mode == LF_CALIBRATE) { /* a calibration call takes LF_CAL_READS readings (Pololu's calibrate) */
+      uint8_t k;
+      for (k = 1; k < LF_CAL_READS; k++) {
+        qtr_read(fw_raw_us, (uint8_t)config.params.count, config.timeout_us);
+        lf_calibrate_update(&fw_state, fw_raw_us, config.params.count);
+      }
+    }
+    qtr_read(fw_raw_us, (uint8_t)config.params.count, config.timeout_us); /* lf_step calibrates with the last */
     if (fw_state.mode == LF_IDLE && button_b_pressed()) {
       lf_reset(&fw_state, LF_RUN);
       ms = us_part = since_sample = 0;
