@@ -111,7 +111,7 @@ def test_implausible_wire_laps_are_reported_and_never_realigned(monkeypatch):
     """Six implausible laps, each far off the twin's 8.78 s: none starts a re-alignment; a plausible 8.8 s lap
     after them does (0.2 % off, above the 0.1 % threshold). The aligner is a stand-in that notes what it is asked."""
     asked = []
-    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed: (
+    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed, limits=None: (
         asked.append(measured), types.SimpleNamespace(explained=False, value=None, message="stand-in"))[1])
     twin = DigitalTwin(track="oval")  # 4.9 m
     good = [encode(Event(0.0, "START"))] + [encode(Sample(0.05 * i, 3500, 1, 40.0, 40.0)) for i in range(1, 100)]
@@ -153,7 +153,7 @@ def test_implausible_laps_are_in_the_json_and_on_stderr(tmp_path, capsys):
 
 @pytest.mark.quick
 def test_a_successful_alignment_is_info_not_warning(monkeypatch, caplog):
-    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed: types.SimpleNamespace(
+    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed, limits=None: types.SimpleNamespace(
         explained=True, value=0.5, message="explained"))
     twin = DigitalTwin(track="oval")
     live = LiveTwin(twin, LiveOptions(threshold=1e-6, k_laps=1))

@@ -115,10 +115,12 @@ class LiveRecording:
                 rrb.TimeSeriesView(name="lap time [s]", origin="/live/lap_time"),
                 rrb.TimeSeriesView(name="discrepancy, robot vs twin [-]", origin="/live/discrepancy"),
                 rrb.TimeSeriesView(name=f"{address} [{unit}]", origin=f"/live/{address}"),
+                rrb.TimeSeriesView(name="gains in force", origin="/live/gains"),
             ),
             rrb.Vertical(
                 rrb.TimeSeriesView(name="left wheel speed [rad/s]", origin="/live/wheel_left"),
                 rrb.TimeSeriesView(name="line position (readLine) [-]", origin="/live/line_position"),
+                rrb.TextLogView(name="what the twin did (--act)", origin="/live/actions"),
             ),
         ), collapse_panels=True)
         self._context = recording(save, view, blueprint, app_id=f"{twin_recording.APP_ID}-live")
@@ -135,6 +137,8 @@ class LiveRecording:
         if e["discrepancy"] is not None:
             rec.log("live/discrepancy", rr.Scalars(e["discrepancy"]))
         rec.log(f"live/{self.address}", rr.Scalars(e[self.address]))
+        for address, value in (e.get("gains") or {}).items():
+            rec.log(f"live/gains/{address.removeprefix('control.')}", rr.Scalars(value))
         lap, twin_trace = e["lap_record"], e["twin_lap"].trace
         series = [("robot", lap.t, lap.wl, lap.pos)]
         if twin_trace is not None:
@@ -146,9 +150,47 @@ class LiveRecording:
                 rec.send_columns(f"live/line_position/{who}", indexes=index, columns=rr.Scalars.columns(scalars=pos))
         twin_recording.flush(rec)  # to the viewer, and to the file lap by lap
 
+    def action(self, a: dict) -> None:
+        """One action of ``live --act`` (what, which command, the outcome), on the lap it was taken."""
+        self.rec.set_time("lap", sequence=a.get("lap", 0))
+        seq = f" #{a['seq']}" if a.get("seq") is not None else ""
+        level = "WARN" if a["kind"] in ("nak", "silent", "rollback", "hold") else "INFO"
+        self.rec.log("live/actions", rr.TextLog(f"{a['kind']}{seq}: {a.get('outcome', '')}", level=level))
+        twin_recording.flush(self.rec)
+
     def close(self, error: BaseException | None = None) -> None:
         """Finish the recording (renamed into place); after an error the partial file is discarded."""
         if error is None:
             self._context.__exit__(None, None, None)
         else:
             self._context.__exit__(type(error), error, error.__traceback__)
+
+
+def save_history(save: str | None, view: bool, entries: Sequence[dict]) -> str | None:
+    """Each robot's life (``history``): lap times and the twin's predictions, the aligned parameter and its trend,
+    by the robot's lap counted across runs; each change of gains as a text line on the lap it came into force."""
+    if not save and not view:
+        return None
+    blueprint = rrb.Blueprint(rrb.Horizontal(
+        rrb.TimeSeriesView(name="lap time [s]", origin="/history", contents=["/history/**/lap_time/**"]),
+        rrb.TimeSeriesView(name="aligned parameters", origin="/history", contents=["/history/**/aligned/**"]),
+        rrb.TextLogView(name="gain changes", origin="/history"),
+    ), collapse_panels=True)
+    with recording(save, view, blueprint, app_id=f"{twin_recording.APP_ID}-history") as rec:
+        for e in entries:
+            robot = re.sub(r"[^A-Za-z0-9_.-]+", "_", e["robot"])
+            for who, key in (("robot", "lap_time_s"), ("twin", "twin_lap_time_s")):
+                rows = [r for r in e["lap_times"] if r[key] is not None]
+                if rows:
+                    _series(rec, f"history/{robot}/lap_time/{who}", [rr.TimeColumn("lap", sequence=[r["n"] for r in rows])],
+                            [r[key] for r in rows])
+            for address in e["trends"]:
+                pts = [a for a in e["alignments"] if a["address"] == address and a["value"] is not None]
+                if pts:
+                    _series(rec, f"history/{robot}/aligned/{address}", [rr.TimeColumn("lap", sequence=[a["lap"] for a in pts])],
+                            [a["value"] for a in pts])
+            for ch in e["changes"]:
+                at = ch["first_lap"] if ch["first_lap"] is not None else ch["decided_lap"]
+                rec.set_time("lap", sequence=at or 0)
+                rec.log(f"history/{robot}/changes", rr.TextLog(f"#{ch['seq']} {ch['kind']} {ch['status']}: {ch['outcome'] or ''}"))
+    return _saved(save)

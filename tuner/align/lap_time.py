@@ -40,6 +40,7 @@ import numpy as np
 
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
+from twin.core.lap import LapLimits
 from twin.model.space import ChangeCost
 from tuner.search.space import TunerError
 
@@ -102,14 +103,16 @@ class LapTimeAlignment:
         return d
 
 
-def _lap_times(twin: DigitalTwin, address: str, values, seed: int, nthread: int) -> list[float | None]:
+def _lap_times(twin: DigitalTwin, address: str, values, seed: int, nthread: int,
+               limits: LapLimits = LapLimits()) -> list[float | None]:
     """The lap time at each value (None: the lap failed): one batch, or, for a parameter that rebuilds the robot,
     one build and lap per value."""
     if twin.space.parameter(address).cost is ChangeCost.REBUILD:
-        results = [run_laps(twin.clone({address: float(v)}), [{}], seed=seed, nthread=nthread, keep_traces=False)[0]
-                   for v in values]
+        results = [run_laps(twin.clone({address: float(v)}), [{}], seed=seed, nthread=nthread, limits=limits,
+                            keep_traces=False)[0] for v in values]
     else:
-        results = run_laps(twin, [{address: float(v)} for v in values], seed=seed, nthread=nthread, keep_traces=False)
+        results = run_laps(twin, [{address: float(v)} for v in values], seed=seed, nthread=nthread, limits=limits,
+                           keep_traces=False)
     return [r.lap_time_s if r.completed else None for r in results]
 
 
@@ -173,7 +176,7 @@ def reachable_intervals(points: list[tuple[float, float | None]]) -> list[tuple[
     return merged
 
 
-def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0) -> tuple[float, float, int]:
+def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0, limits) -> tuple[float, float, int]:
     """Safeguarded Gauss–Newton on (t − m)² inside a bracket [a, b]; returns (value, lap time, iterations)."""
     x = a + (m - ta) * (b - a) / (tb - ta)  # start at the secant
     value, lap = (a, ta) if abs(ta - m) < abs(tb - m) else (b, tb)
@@ -181,7 +184,7 @@ def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0) -
     for k in range(1, max_iter + 1):
         h = REL_STEP * max(abs(x), 1e-3)
         xs = [x, min(x + h, b), max(x - h, a)]
-        t = _lap_times(twin, address, xs, seed, nthread)
+        t = _lap_times(twin, address, xs, seed, nthread, limits)
         trace += [AlignPoint(k0 + k, float(v), tt) for v, tt in zip(xs, t)]
         for v, tt in zip(xs, t):  # every completed lap narrows the bracket
             if tt is None:
@@ -238,9 +241,11 @@ def align_lap_time(
     seed: int = 0,
     max_iter: int = 20,
     nthread: int = 0,
+    limits: LapLimits = LapLimits(),
 ) -> LapTimeAlignment:
     """Align one parameter to a measured lap time (see the module docstring). A parameter that rebuilds the robot
-    (``cad.*``) is searched too, one build per value, so it costs far more wall time."""
+    (``cad.*``) is searched too, one build per value, so it costs far more wall time. ``limits``: when a lap fails
+    (a timeout near twice the measurement spares the scan laps that crawl to the default 60 s)."""
     if not (isinstance(measured_lap_time_s, (int, float)) and math.isfinite(measured_lap_time_s) and measured_lap_time_s > 0):
         raise TunerError(f"measured lap time: must be a finite number of seconds > 0, got {measured_lap_time_s!r}")
     p = twin.space.parameter(address)
@@ -265,7 +270,7 @@ def align_lap_time(
         values = values[: max(0, SCAN_POINTS + REFINE_LAPS - len(points))]
         if not values:
             break
-        times = _lap_times(twin, address, values, seed, nthread)
+        times = _lap_times(twin, address, values, seed, nthread, limits)
         trace += [AlignPoint(0, float(v), t) for v, t in zip(values, times)]
         points = sorted(points + [(float(v), t) for v, t in zip(values, times)])
         values = _refine(points, m, TOLERANCE)
@@ -292,7 +297,7 @@ def align_lap_time(
     for (a, ta), (b, tb) in brackets:
         if any(a <= v <= b for v, _ in found):
             continue  # a scan lap already landed within tolerance here
-        value, lap, k = _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, iterations)
+        value, lap, k = _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, iterations, limits)
         iterations += k
         found.append((value, lap))
     return _result(address, found, m, iterations, trace, intervals, current, (lo, hi), None)

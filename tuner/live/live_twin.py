@@ -9,6 +9,12 @@ reported, log warning and ``--json``, and counted, never used for re-alignment).
   copy of the twin, on the mean of those laps; its result is applied, logged with the reason, and saved.
 * The state file (:mod:`tuner.live.state`) holds the aligned value and the alignments. A restart replays the log
   (:func:`tuner.live.replay.resume`) and reloads the state.
+* With an :class:`tuner.live.act.Actor` (``live --act``) the twin also acts: alignment then runs in the calling
+  thread (the caller feeds it from a thread of its own, :class:`tuner.live.worker.Worker`, so the link is read
+  on), then the actor decides whether to re-tune, and after every lap it sends one command. The twin's gains
+  follow the robot's: each lap is predicted with the gains its header says were in force.
+* ``on_record`` receives what is worth keeping (each lap, both sides; each alignment), for the journal beside the
+  log and the history database.
 """
 
 from __future__ import annotations
@@ -23,11 +29,14 @@ from typing import Callable
 import numpy as np
 
 from tuner.align.lap_time import align_lap_time
+from tuner.history import first_failure, trend_of
+from tuner.live.act import Actor
 from tuner.live.state import read_state, write_state
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
 from twin.telemetry.laps import LapAssembler, RobotLap
+from twin.telemetry.wire import GAIN_ADDRESSES, Boot, Header, Reply
 
 log = logging.getLogger(__name__)
 
@@ -46,8 +55,10 @@ class LiveTwin:
     """The decisions of live mode, independent of where the lines come from."""
 
     def __init__(self, twin: DigitalTwin, options: LiveOptions, state_path: str | None = None,
-                 on_lap: Callable[[dict], None] | None = None):
+                 on_lap: Callable[[dict], None] | None = None, actor: Actor | None = None,
+                 on_record: Callable[[dict], None] | None = None):
         self.twin, self.o, self.state_path, self.on_lap = twin, options, state_path, on_lap
+        self.actor, self.on_record = actor, on_record
         twin.model()
         self.assembler = LapAssembler(twin.track.length_m, LapLimits().timeout_s)
         self.laps: list[dict] = []
@@ -68,16 +79,24 @@ class LiveTwin:
                 log.info("resumed state from %s: %s", state_path, state["values"])
 
     def prediction(self):
-        """The twin's lap under its current parameters (cached until they change)."""
-        v = self.twin.space.get(self.o.address)
-        if self._prediction is None or self._prediction[0] != v:
-            self._prediction = (v, run_laps(self.twin, [{}], seed=self.o.seed)[0])
+        """The twin's lap under its current parameters and gains (cached until they change)."""
+        key = (self.twin.space.get(self.o.address), tuple(self.twin.space.get(a) for a in GAIN_ADDRESSES))
+        if self._prediction is None or self._prediction[0] != key:
+            self._prediction = (key, run_laps(self.twin, [{}], seed=self.o.seed)[0])
         return self._prediction[1]
 
-    def feed(self, rec, replay: bool = False) -> None:
+    def feed(self, rec, replay: bool = False, arrival: float | None = None) -> None:
+        """One record from the robot (None: nothing came for a while); ``arrival``: when it came
+        (``time.monotonic``; default now), against which the actor judges its answer deadlines."""
         self._apply_alignment()
+        arrival = time.monotonic() if arrival is None else arrival
+        if self.actor is not None:
+            self.actor.live = not replay
+            self.actor.idle(arrival)
         if rec is None:
             return
+        if self.actor is not None and isinstance(rec, (Header, Boot, Reply)):
+            self.actor.on_record(rec, arrival)
         lap = self.assembler.feed(rec)
         if lap is not None:
             self._lap(lap, replay)
@@ -85,13 +104,15 @@ class LiveTwin:
     def _lap(self, lap: RobotLap, replay: bool) -> None:
         twin_lap = self.prediction()
         entry = {"lap": lap.index, "robot_lap_time_s": lap.lap_time_s, "twin_lap_time_s": twin_lap.lap_time_s,
-                 self.o.address: self.twin.space.get(self.o.address), "replayed": replay, "implausible": lap.implausible}
+                 self.o.address: self.twin.space.get(self.o.address), "replayed": replay, "implausible": lap.implausible,
+                 "robot": lap.robot, "gains_seq": lap.gains_seq,
+                 "gains": {a: self.twin.space.get(a) for a in GAIN_ADDRESSES}}
         if lap.implausible:  # reported, never acted on (a replayed one was reported when it arrived)
             log.log(logging.INFO if replay else logging.WARNING, "lap %d ignored: %s", lap.index, lap.implausible)
             entry["discrepancy"] = None
-            self.laps.append(entry)
-            if self.on_lap:
-                self.on_lap({**entry, "lap_record": lap, "twin_lap": twin_lap})
+            self._record(entry, lap, twin_lap, replay)
+            if self.actor is not None:
+                self.actor.end_of_lap()
             return
         if lap.lap_time_s is not None and twin_lap.completed:
             entry["discrepancy"] = (lap.lap_time_s - twin_lap.lap_time_s) / twin_lap.lap_time_s
@@ -101,41 +122,97 @@ class LiveTwin:
                     (np.interp(lap.t, tr.time_s, tr.column("position")) - lap.pos) ** 2)))
         else:
             entry["discrepancy"] = None  # one of them failed: that alone is a disagreement
-        self.laps.append(entry)
         off = entry["discrepancy"] is None or abs(entry["discrepancy"]) > self.o.threshold
         self.streak = self.streak + 1 if off else 0
-        if self.on_lap:
-            self.on_lap({**entry, "lap_record": lap, "twin_lap": twin_lap})
+        self._record(entry, lap, twin_lap, replay)
+        if self.actor is not None:
+            self.actor.observe(entry, self.laps)
+            if self.actor.busy():
+                self.streak = 0  # a change is being confirmed: its laps are the actor's to judge
         if not replay and self.streak >= self.o.k_laps and self._thread is None:
             recent = [e["robot_lap_time_s"] for e in self.laps[-self.o.k_laps:] if e["robot_lap_time_s"]]
             if recent:
                 self._start_alignment(float(np.mean(recent)), entry)
+            elif self.actor is not None:  # every lap failed: no lap time to align on, but failures say much
+                self._apply_alignment(result=self._from_failures())
+        if self.actor is not None:
+            self.actor.end_of_lap()
+
+    def _from_failures(self) -> dict:
+        """When the robot's last laps all failed with gains the twin finishes with: where it is now along the
+        trend of its alignments, else the most the parameter can be (the value where the twin's laps with these
+        gains first fail, raced downward from the twin's value: the robot's must lie beyond it)."""
+        address, value = self.o.address, self.twin.space.get(self.o.address)
+        t = trend_of(self.alignments, address)
+        reason = f"the robot's last {self.streak} laps failed, the twin's finish at {address} = {value:.4g}"
+        if t is not None and (t.at(len(self.laps)) - value) * t.slope > 0:
+            est = t.at(len(self.laps))
+            how = f"its trend ({t.slope:+.3g} per lap) puts it at {est:.4g} now"
+        else:
+            p = self.twin.space.parameter(address)
+            gains = {a: self.twin.space.get(a) for a in GAIN_ADDRESSES}
+            end = max(p.lower, value * 0.5) if (t is None or t.slope <= 0) else min(p.upper, value * 1.5)
+            est, _, _ = first_failure(self.twin, gains, address, value, end, 1, self.o.seed, self._limits())
+            if est is None:
+                return {"explained": False, "value": None, "reason": reason, "before": value,
+                        "message": f"the twin's laps with these gains finish from {value:.4g} to {end:.4g}: the "
+                                   "failures are not explained by it"}
+            how = f"the twin's laps with these gains first fail at {est:.4g}"
+        margin = abs(est) * 0.05
+        return {"explained": True, "value": est, "reason": reason, "before": value, "measured_lap_time_s": None,
+                "message": f"{address} estimated from failed laps: {how}", "from_failures": True,
+                "interval": [est - margin, est + margin], "identifiable": False}
+
+    def _limits(self) -> LapLimits:
+        """Laps of the twin's own searches end as failures at twice the robot's lap (not at 60 s)."""
+        done = [e["robot_lap_time_s"] for e in self.laps if e["robot_lap_time_s"]]
+        return LapLimits(timeout_s=2 * float(np.median(done[-10:]))) if done else LapLimits()
+
+    def _record(self, entry: dict, lap: RobotLap, twin_lap, replay: bool) -> None:
+        self.laps.append(entry)
+        if self.on_lap:
+            self.on_lap({**entry, "lap_record": lap, "twin_lap": twin_lap})
+        if self.on_record and not replay:
+            self.on_record({"kind": "lap", **entry, "lap_record": lap, "twin_lap": twin_lap})
 
     def _start_alignment(self, measured: float, why: dict) -> None:
         values = dict(self.twin.space.values)
-        other = self.twin.clone()  # built in the background thread, never shared with the live loop
-        reason = (f"robot laps {measured:.3f} s (mean of {self.o.k_laps}) against the twin's "
-                  f"{why['twin_lap_time_s']:.3f} s for {self.streak} laps")
+        twin_s = "failed" if why["twin_lap_time_s"] is None else f"{why['twin_lap_time_s']:.3f} s"
+        reason = (f"robot laps {measured:.3f} s (mean of the completed of {self.o.k_laps}) against the twin's "
+                  f"{twin_s} for {self.streak} laps")
         log.info("re-aligning %s: %s", self.o.address, reason)
+        other = self.twin.clone() if self.actor is None else self.twin  # acting: this thread, this twin
 
         def work():
             try:
-                r = align_lap_time(other, measured, self.o.address, bounds=self.o.bounds, seed=self.o.seed)
+                r = align_lap_time(other, measured, self.o.address, bounds=self.o.bounds, seed=self.o.seed,
+                                   limits=LapLimits(timeout_s=max(2 * measured, measured + 10)))
+                interval = getattr(r, "consistent", None)
                 self._result = {"explained": r.explained, "value": r.value, "message": r.message, "reason": reason,
-                                "measured_lap_time_s": measured, "before": values[self.o.address]}
+                                "measured_lap_time_s": measured, "before": values[self.o.address],
+                                "interval": list(interval) if interval else None,
+                                "identifiable": getattr(r, "identifiable", None)}
             except Exception as e:  # the live loop goes on; the failure is reported, not raised here
                 self._result = {"explained": False, "value": None, "message": f"alignment failed: {e}", "reason": reason}
 
+        if self.actor is not None:
+            work()  # acting decides in order: the alignment, then what to do with it, before the next lap
+            self._apply_alignment(result=self._result)
+            return
         self._thread = threading.Thread(target=work, name="align", daemon=True)
         self._thread.start()
 
-    def _apply_alignment(self, wait: bool = False) -> None:
-        if self._thread is None or (self._thread.is_alive() and not wait):
-            return
-        self._thread.join()
-        r, self._thread, self._result = self._result, None, None
+    def _apply_alignment(self, wait: bool = False, result: dict | None = None) -> None:
+        if result is None:
+            if self._thread is None or (self._thread.is_alive() and not wait):
+                return
+            self._thread.join()
+            result, self._thread = self._result, None
+        r, self._result = result, None
         r["lap"] = len(self.laps)
         r["time"] = time.time()
+        r["address"] = self.o.address
+        r["robot"] = self.assembler.header.robot if self.assembler.header else None
         if r["explained"] and r["value"] is not None:
             self.twin.set(self.o.address, r["value"])
             log.info("aligned %s: %.5g → %.5g (%s)", self.o.address, r["before"], r["value"], r["reason"])
@@ -144,6 +221,11 @@ class LiveTwin:
         self.alignments.append(r)
         self.streak = 0
         self.save_state()
+        if self.on_record:
+            self.on_record({"kind": "alignment", **r})
+        if self.actor is not None:
+            slope = trend_of(self.alignments, self.o.address)
+            self.actor.consider(r, len(self.laps), self._limits().timeout_s / 2, slope.slope if slope else None)
 
     def finish(self) -> None:
         """Wait for a running alignment and apply it."""

@@ -27,20 +27,27 @@ def _replay_line(raw: bytes | None, live: LiveTwin, stats: LinkStats, realign: b
     feed_line(raw, live, stats, replay=not realign, before_lap=live.finish if realign else None)
 
 
-def feed_line(raw: bytes, live: LiveTwin, stats: LinkStats, replay: bool = False,
-              before_lap: Callable[[], None] | None = None) -> bool:
-    """One received wire line → the live twin (a corrupted one only counted); True for a lap event (LAP, FAIL).
-    ``before_lap`` runs just before a lap event is fed."""
+def decode_line(raw: bytes, stats: LinkStats):
+    """One received wire line → (its record or None if corrupted, whether it is a lap event: LAP or FAIL)."""
     try:
         rec = decode(raw)
     except WireError:
         stats.corrupted += 1
-        return False
+        return None, False
     lap_event = isinstance(rec, Event) and rec.event in ("LAP", "FAIL")
-    if lap_event:
-        stats.robot_laps += 1
-        if before_lap is not None:
-            before_lap()
+    stats.robot_laps += lap_event
+    return rec, lap_event
+
+
+def feed_line(raw: bytes, live: LiveTwin, stats: LinkStats, replay: bool = False,
+              before_lap: Callable[[], None] | None = None) -> bool:
+    """One received wire line → the live twin (a corrupted one only counted); True for a lap event (LAP, FAIL).
+    ``before_lap`` runs just before a lap event is fed."""
+    rec, lap_event = decode_line(raw, stats)
+    if rec is None:
+        return False
+    if lap_event and before_lap is not None:
+        before_lap()
     live.feed(rec, replay=replay)
     return lap_event
 

@@ -15,6 +15,7 @@ from twin.model.parameter_files import save_values
 from twin.telemetry.jsonl import read_telemetry
 from tuner.align.lap_time import ACCEPT, TOLERANCE, align_lap_time
 from tuner.align.trace import align_telemetry
+from tuner.history import record_alignment, record_fit
 from tuner.recording import save_alignment, save_trace_alignment
 from tuner.sensitivity import lap_time_warning
 
@@ -38,6 +39,7 @@ def add_parser(sub) -> None:
     o.add_values(p)
     o.add_seed(p, 0, "the twin's sensor-noise seed")
     o.add_out(p, "the aligned values as a parameter file (load it with --params)", "FILE.json")
+    o.add_db(p, "the alignment")
     o.add_json(p)
     o.add_recording(p, "the alignment")
     o.add_verbose(p)
@@ -50,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         check_output_file(args.out, json_is_ours, "parameter file")
     recording.check_targets(args.save, args.view)
+    o.check_db(args.db)
     return _telemetry(args) if args.telemetry is not None else _lap_time(args)
 
 
@@ -61,6 +64,7 @@ def _lap_time(args: argparse.Namespace) -> int:
     twin = o.twin_from_args(args)
     address = parameters[0]
     bounds = o.parse_bounds(args.bounds, parameters).get(address)
+    before = twin.space.get(address)
     r = align_lap_time(twin, args.measured_lap_time, address, bounds=bounds, seed=args.seed)
     summary = {**r.summary(), "recording": None, "out": None}
     # does the parameter move the lap time at all? (the learned influences, else this alignment's own laps)
@@ -70,6 +74,7 @@ def _lap_time(args: argparse.Namespace) -> int:
         summary["out"] = save_values(args.out, {address: r.value}, source="align --measured-lap-time",
                                      measured_lap_time_s=r.measured_lap_time_s, simulated_lap_time_s=r.simulated_lap_time_s)
     summary["recording"] = save_alignment(args.save, args.view, r, twin.space.parameter(address).unit)
+    summary["history"] = o.keep_history(args.db, lambda h: record_alignment(h, r, before), out)
     out.document(summary)
     out.say(r.message)
     if summary["sensitivity_warning"]:
@@ -105,6 +110,7 @@ def _telemetry(args: argparse.Namespace) -> int:
                                      telemetry=os.path.abspath(args.telemetry),
                                      identifiable={p.address: p.identifiable for p in r.parameters})
     summary["recording"] = save_trace_alignment(args.save, args.view, tel, r)
+    summary["history"] = o.keep_history(args.db, lambda h: record_fit(h, r.parameters, r.measured_lap_time_s), out)
     out.document(summary)
     for p in r.parameters:
         ci = f"95 % [{p.ci95[0]:.5g}, {p.ci95[1]:.5g}]" if p.ci95 is not None else "no interval"

@@ -1,17 +1,22 @@
 """``emulate``: a stand-in robot: a twin with hidden parameters driving lap after lap and streaming its wire
-telemetry at real-time pace on a pseudo-terminal it creates, or on a 127.0.0.1 TCP port."""
+telemetry at real-time pace on a pseudo-terminal it creates, or on a 127.0.0.1 TCP port, answering the twin's
+commands (wire version 2); a hidden parameter may drift from lap to lap."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
 import os
+import select
+import time
 
 from lf_common.errors import OutputError
 from twin.cli import options as o
 from twin.cli.output import Output
-from twin.link.emulator import (NoReader, accept, check_link_path, drain_pty, firmware_lap_records, lap_records, open_pty,
-                           pty_writer, release_link, serve_tcp, stream)
+from twin.link.emulator import (CommandPort, Drift, NoReader, accept, check_link_path, drain_pty, firmware_lap_records,
+                                lap_records, open_pty, pty_writer, release_link, serve_tcp, stream)
+from twin.link.robot_end import COMMAND_MODES, EepromFile, RobotEnd
+from twin.telemetry.wire import GAIN_ADDRESSES, valid_robot_id
 from twin.errors import TwinError
 from twin.pil.board import load_script, runnable_program
 from twin.pil.lap import runnable_firmware
@@ -35,6 +40,19 @@ def add_parser(sub) -> None:
     p.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty, stable across restarts")
     p.add_argument("--echo", metavar="FILE", help="append every line sent to FILE")
     o.add_firmware(p, "the robot (with avr or a program file, the lines are the MCU's UART output)")
+    p.add_argument("--drift", action="append", metavar="ADDRESS=START:END@LAPS",
+                   help="a hidden parameter drifting linearly from START (lap 0) to END (lap LAPS), e.g. worn tyres "
+                        "motion.mu=0.9:0.55@80; repeatable")
+    p.add_argument("--robot-id", default="lf-1", metavar="ID", help="the robot's id in its wire headers (1-16 of A-Z a-z 0-9 _ -)")
+    p.add_argument("--wire", type=int, choices=(1, 2), default=2,
+                   help="the wire version it speaks: 2 (an id, answers commands) or 1 (an older robot: neither)")
+    p.add_argument("--eeprom", metavar="FILE", help="its EEPROM (stored gains), kept in FILE across runs (created if missing)")
+    p.add_argument("--commands", choices=COMMAND_MODES, default="answer",
+                   help="how it treats the twin's commands: answer them, refuse each SET and STORE (NAK,LOCKED), or "
+                        "ignore them (a receive line that is cut)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="after each lap wait for the twin's next command (live --act sends one every lap): runs at "
+                        "--speed then see the twin's decisions on the lap they were taken")
     p.add_argument("--idle-timeout", type=o.number(0.1, 86400.0), default=60.0, metavar="WALL_S",
                    help="stop when nobody has read the stream for this long (no TCP client, a pty nobody reads)")
     o.add_json(p)
@@ -78,21 +96,26 @@ def run(args: argparse.Namespace) -> int:
         twin = o.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
         args.gains_warning = o.gains_warning(args, twin)
         twin.model()
+        drifts = [Drift.parse(d, twin) for d in args.drift or ()]
+        robot = _robot_end(args, twin)
         if args.firmware == "c":
-            lines = lap_records(twin, args.seed, args.every, args.laps)
+            lines = lap_records(twin, args.seed, args.every, args.laps, robot, drifts)
         else:
+            if robot is not None and args.eeprom:
+                raise TwinError("--eeprom: the firmware on the MCU keeps its gains in the MCU's own EEPROM")
             elf = None if args.firmware == "avr" else args.firmware
             if elf:  # a bad program or a missing simavr fails now, not when the first reader comes
                 runnable_program(twin, elf)
             else:
                 runnable_firmware(twin, None)
             operator = (lambda: load_script(args.operator)) if script else None
-            lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps, operator)
+            lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps, operator, drifts)
+            robot = None  # its program answers (or not) for itself
         echo = _echo_writer(echo_file) if echo_file else None
         if args.tcp is not None:
-            _serve_tcp(args, lines, echo, out)
+            _serve_tcp(args, lines, echo, out, robot)
         else:
-            _serve_pty(args, lines, echo, out)
+            _serve_pty(args, lines, echo, out, robot)
     except NoReader as e:
         out.say(f"robot emulator stops: {e}")
     finally:
@@ -102,16 +125,61 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _serve_tcp(args, lines, echo, out: Output) -> None:
+def _robot_end(args, twin) -> RobotEnd | None:
+    """The robot's end of the command link (None for a version 1 robot)."""
+    if args.wire == 1:
+        for flag, given in (("--eeprom", args.eeprom), ("--lockstep", args.lockstep),
+                            ("--commands", args.commands != "answer")):
+            if given:
+                raise TwinError(f"{flag}: a version 1 robot takes no commands (--wire 1)")
+        return None
+    if not valid_robot_id(args.robot_id):
+        raise TwinError(f"--robot-id {args.robot_id!r}: give 1-16 of A-Z a-z 0-9 _ -")
+    eeprom = EepromFile(args.eeprom) if args.eeprom else None
+    limits = {a: (twin.space.parameter(a).lower, twin.space.parameter(a).upper) for a in GAIN_ADDRESSES}
+    return RobotEnd(args.robot_id, {a: twin.space.get(a) for a in GAIN_ADDRESSES}, limits, eeprom, args.commands)
+
+
+class _Receiver:
+    """Bytes the twin sent on ``fd`` (a pty master or a socket), waiting at most ``timeout``; b"" once it closed."""
+
+    def __init__(self, fd: int):
+        self.fd, self.closed = fd, False
+
+    def __call__(self, timeout: float) -> bytes:
+        if self.closed:
+            time.sleep(timeout)
+            return b""
+        ready, _, _ = select.select([self.fd], [], [], timeout)
+        if not ready:
+            return b""
+        try:
+            data = os.read(self.fd, 4096)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError:
+            data = b""
+        self.closed = not data
+        return data
+
+
+def _commands(args, robot: RobotEnd | None, fd: int) -> CommandPort | None:
+    return None if robot is None else CommandPort(_Receiver(fd), robot, args.lockstep, args.idle_timeout, args.laps)
+
+
+def _serve_tcp(args, lines, echo, out: Output, robot: RobotEnd | None) -> None:
     server = serve_tcp(args.tcp)
     with server:
         url = f"socket://127.0.0.1:{server.getsockname()[1]}"
         out.document({"link": url, "gains_warning": args.gains_warning})
         out.say(f"robot emulator on {url}")
+        commands = _commands(args, robot, -1)  # one robot across connections; each brings its own way back
         while True:
             conn = accept(server, args.idle_timeout)
+            if commands is not None:
+                commands.receive = _Receiver(conn.fileno())
             try:
-                stream(lines, conn.sendall, args.speed, echo)
+                stream(lines, conn.sendall, args.speed, echo, commands)
                 return
             except OSError:
                 continue  # the reader went away: wait (at most --idle-timeout) for the next one, carry on with the laps
@@ -119,13 +187,13 @@ def _serve_tcp(args, lines, echo, out: Output) -> None:
                 conn.close()
 
 
-def _serve_pty(args, lines, echo, out: Output) -> None:
+def _serve_pty(args, lines, echo, out: Output, robot: RobotEnd | None) -> None:
     master, slave, tty_path = open_pty(args.link)
     try:
         path = args.link or tty_path
         out.document({"link": path, "gains_warning": args.gains_warning})
         out.say(f"robot emulator on {path}")
-        stream(lines, pty_writer(master, args.idle_timeout), args.speed, echo)
+        stream(lines, pty_writer(master, args.idle_timeout), args.speed, echo, _commands(args, robot, master))
         drain_pty(slave, args.idle_timeout)  # the last lap reaches the reader before the pty goes
     finally:
         if args.link:

@@ -38,6 +38,7 @@ def add_parser(sub) -> None:
                    "set-points out (the firmware still calibrates)")
     p.add_argument("--map", action="append", metavar="FMU_VARIABLE=TWIN_PORT", help="connect a variable of the "
                    "--controller-fmu to a twin port, repeatable (default: by name)")
+    o.add_db(p, "the lap")
     o.add_json(p)
     o.add_recording(p, "the lap")
     o.add_verbose(p)
@@ -52,6 +53,7 @@ def lap_summary(result, twin, seed: int) -> dict:
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     recording.check_targets(args.save, args.view)  # before the lap: a bad path fails now, not after
+    o.check_db(args.db)
     program, script = o.program_from_args(args)
     twin = o.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
     warning = o.gains_warning(args, twin)
@@ -84,6 +86,9 @@ def run(args: argparse.Namespace) -> int:
         summary["mcu"] = mcu.summary()
     if controller:
         summary["controller"] = controller.describe()
+    from tuner.history import record_lap
+
+    summary["history"] = o.keep_history(args.db, lambda h: record_lap(h, twin, result), out)
     out.document(summary)
     if isinstance(twin.track, Maze):
         out.say((f"finish reached in {result.lap_time_s:.3f} s" if result.completed else

@@ -1,5 +1,6 @@
 """``live``: the twin beside the robot: every received line logged, each lap compared, re-alignment in the
-background when laps keep disagreeing."""
+background when laps keep disagreeing; with ``--act``, re-tuned gains sent to the robot, confirmed or rolled
+back; what the twin did kept beside the log (``<log>.actions``)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,10 @@ from twin.cli import options as o
 from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
 from twin.errors import TwinError
-from tuner.live import LiveOptions, LiveTwin, check_state, feed_line, replay_log, resume
-from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, check_port, read_link
+from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display, read_journal
+from tuner.live import (ActOptions, Actor, LiveOptions, LiveTwin, Worker, check_state, decode_line, feed_line, replay_log,
+                        resume)
+from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, check_port, read_link
 from twin.link.reader import FSYNC_INTERVAL_S, RETRY_S
 from tuner.recording import LiveRecording
 
@@ -48,6 +51,17 @@ def add_parser(sub) -> None:
     p.add_argument("--retry", type=o.number(0.0, 10**6), default=RETRY_S, metavar="WALL_S",
                    help="how long to keep reopening a link that is down before giving up (exit 1)")
     p.add_argument("--retry-forever", action="store_true", help="keep reopening a link that is down, never give up")
+    p.add_argument("--act", action="store_true", help=(
+        "act on the robot: after a re-alignment whose value the gains in force no longer finish around, re-tune, "
+        "predict, send the gains (wire version 2), wait for the answer, compare the laps that follow with the "
+        "prediction and roll back what did worse; one command every lap (GET reads the gains back)"))
+    p.add_argument("--act-every", type=o.count_type, default=ActOptions.every_laps, metavar="N",
+                   help="at most one change of gains per N laps")
+    p.add_argument("--confirm-laps", type=o.count_type, default=ActOptions.confirm_laps, metavar="N",
+                   help="laps with new gains compared with the prediction before they are confirmed (or rolled back)")
+    o.add_db(p, "the robot's life (robots, runs, laps, alignments, gain changes)")
+    p.add_argument("--ack-timeout", type=o.number(0.01, 3600.0), default=ActOptions.ack_timeout_s, metavar="WALL_S",
+                   help="how long to wait for the robot's answer to a command")
     o.add_json(p)
     o.add_recording(p, "the comparison, lap by lap")
     o.add_verbose(p)
@@ -60,10 +74,15 @@ def run(args: argparse.Namespace) -> int:
         raise TwinError("live: give --port PATH_OR_URL or --replay LOG, not both")
     if args.replay:
         input_file(args.replay, "telemetry log")
+        if args.act:
+            raise TwinError("live --act: acting needs a robot to send to: give --port, not --replay")
+        if args.db:
+            raise TwinError("live --replay --db: a log goes into the history with history --rebuild --log LOG --db URL")
     else:
         if not args.port:
             raise TwinError("live: give --port PATH_OR_URL (or --replay LOG)")
         check_port(args.port)  # a malformed URL is refused before the twin is built
+    o.check_db(args.db)
     twin = o.twin_from_args(args)
     warning = o.gains_warning(args, twin)
     twin.model()
@@ -80,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         if args.replay:
             summary, code, log_error = _replay(args, twin, options, on_lap, out), 0, None
         else:
-            summary, code, log_error = _link(args, twin, options, on_lap, out)
+            summary, code, log_error = _link(args, twin, options, on_lap, out, rec)
     except BaseException as e:
         if rec is not None:
             rec.close(e)
@@ -131,32 +150,116 @@ def _replay(args, twin, options: LiveOptions, on_lap, out: Output) -> dict:
             "alignments": live.alignments, "replayed": os.path.abspath(args.replay)}
 
 
-def _link(args, twin, options: LiveOptions, on_lap, out: Output) -> tuple[dict, int, LogWriteError | None]:
+def _actor(args, twin, options: LiveOptions, outbox: Outbox, journal: Journal, on_action) -> Actor | None:
+    if not args.act:
+        return None
+    past = [a for _, a in read_journal(journal.path)]
+    known = {a["seq"]: a["gains"] for a in past if a.get("kind") == "decide" and a.get("gains")}
+    sent = [a["seq"] for a in past if isinstance(a.get("seq"), int)]
+    act = ActOptions(every_laps=args.act_every, confirm_laps=args.confirm_laps, ack_timeout_s=args.ack_timeout)
+    return Actor(twin, options.address, act, options.seed,
+                 lambda line, deadline: outbox.put(line.encode("ascii"), deadline), on_action,
+                 next_seq=max(sent, default=0) + 1, known=known)
+
+
+def _action_printer(out: Output, journal: Journal, rec, actions: list[dict], db: HistoryWriter | None):
+    """Each action: to the journal beside the log (and the database), one human line (commands only to the
+    journal), the recording and the summary."""
+
+    def on_action(a: dict) -> None:
+        index = journal.write(a)
+        if db is not None:
+            db.journal_record(a, index)
+        if a["kind"] == "command":
+            return
+        actions.append(a)
+        out.say(f"act: {a['kind']}{' #' + str(a['seq']) if a.get('seq') is not None else ''}: {a.get('outcome', '')}")
+        if rec is not None:
+            rec.action(a)
+
+    return on_action
+
+
+def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
+    """What the live twin keeps (each lap's twin side, each alignment) to the journal beside the log, and the
+    database."""
+
+    def on_record(r: dict) -> None:
+        if r["kind"] == "lap":
+            lap = r["lap_record"]
+            record = {"kind": "lap", "lap": r["lap"], "time": round(time.time(), 3), "robot": r["robot"],
+                      "gains_seq": r["gains_seq"], "robot_lap_time_s": r["robot_lap_time_s"],
+                      "twin_lap_time_s": r["twin_lap_time_s"], "discrepancy": r["discrepancy"],
+                      "value": {address: r[address]}, "gains": r["gains"], "implausible": lap.implausible}
+            journal.write(record)
+            if db is not None:
+                db.lap(lap, record)
+        else:
+            index = journal.write(r)
+            if db is not None:
+                db.journal_record(r, index)
+
+    return on_record
+
+
+def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tuple[dict, int, LogWriteError | None]:
     """Resume from the log, then read the link until --laps, --duration, Ctrl-C, SIGTERM or a log that cannot be
     written; (summary, exit code, that log error)."""
     state = args.state or f"{args.log}.state.json"
     stats, signalled, gave_up, log_error = LinkStats(), [], None, None
     check_state(state)  # a file that is not a state of ours is refused before the log is even opened
+    check_journal(actions_path(args.log))
     log_file = DurableLog(args.log)  # locked, a cut-off last line marked: before anything reads it
+    journal, actions, outbox, db = None, [], Outbox(), None
     try:
-        live = LiveTwin(twin, options, state, on_lap)
+        journal = Journal(actions_path(args.log), os.path.basename(args.log))
+        db = HistoryWriter(args.db, args.log, out.say) if args.db else None
+        actor = _actor(args, twin, options, outbox, journal, _action_printer(out, journal, rec, actions, db))
+        live = LiveTwin(twin, options, state, on_lap, actor, _journal_record(journal, options.address, db))
         start_laps = resume(live, args.log)
         if start_laps:
             out.say(f"resumed {start_laps} laps from {args.log}")
+        session = {"kind": "session", "time": round(time.time(), 3), "lap": start_laps, "act": bool(args.act),
+                   "address": options.address, "port": args.port, "pitch_m": twin.space.get("sensor.pitch"),
+                   "gains": {a: v for a, v in twin.space.values.items() if a.startswith("control.")}}
+        index = journal.write(session)
+        if db is not None:
+            db.journal_record(session, index)
         stop = _stopper(args, live, start_laps, signalled)
+        worker = Worker(live, stop) if actor is not None else None
+
+        def on_line(raw: bytes) -> bool:
+            if worker is None:
+                return feed_line(raw, live, stats)
+            record, lap_event = decode_line(raw, stats)
+            if record is not None:
+                worker.put(record)
+            return lap_event
+
         with _stop_on_signals(signalled):  # a clean stop: the log synced, the state saved, the summary printed
             try:
-                read_link(args.port, log_file, lambda raw: feed_line(raw, live, stats), lambda: live.feed(None), stats, stop,
-                          None if args.retry_forever else args.retry)
+                read_link(args.port, log_file, on_line, (lambda: None) if worker else (lambda: live.feed(None)), stats,
+                          stop, None if args.retry_forever else args.retry, outbox)
             except LinkGaveUp as e:
                 gave_up = str(e)
             except LogWriteError as e:  # the log is the record: stop as cleanly as for a signal
                 log_error = e
+            finally:
+                if worker is not None:
+                    worker.finish()
         live.finish()  # (a second Ctrl-C interrupts this wait: the handlers are back)
     finally:
         log_file.close()
+        if journal is not None:
+            journal.close()
+        if db is not None:
+            db.close()
     summary = _summary(args, live, stats, start_laps, state, gave_up, signalled)
     summary["log_error"] = str(log_error) if log_error else None
+    summary["actions"] = actions
+    summary["changes"] = actor.summary() if actor is not None else []
+    summary["journal"] = os.path.abspath(journal.path)
+    summary["history"] = None if db is None else {"db": display(args.db), "written": db.written, "error": db.failed}
     out.say(f"{summary['laps']} laps ({summary['implausible_laps']} implausible), {stats.lines} lines "
             f"({stats.corrupted} corrupted), {stats.reconnects} reconnects; "
             f"{options.address} = {summary['value'][options.address]:.5g}; log {summary['log']}")

@@ -3,7 +3,8 @@ shows each command's options and their defaults; docs/cli.md's "Flags" table say
 
 from __future__ import annotations
 
-from twin.cli import align, build, design, diagnose, emulate, firmware, fmu, graph, lap, live, record, robot, sweep, tune, view
+from twin.cli import (align, build, design, diagnose, emulate, firmware, fmu, graph, history, lap, live, record, robot, sweep,
+                      tune, view)
 from twin.cli import options as o
 from twin.cli.guard import run_command
 
@@ -11,7 +12,8 @@ from twin.cli.guard import run_command
 def parser() -> o.Parser:
     p = o.Parser(prog="python -m twin.run", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in (lap, tune, align, diagnose, sweep, design, record, emulate, live, view, build, firmware, fmu, graph):
+    for command in (lap, tune, align, diagnose, sweep, design, record, emulate, live, history, view, build, firmware, fmu,
+                    graph):
         command.add_parser(sub)
     robot.add_generate(sub)
     robot.add_convert(sub)

@@ -206,6 +206,42 @@ def add_recording(p: argparse.ArgumentParser, what: str, view: bool = True) -> N
         p.add_argument("--view", action="store_true", help=f"show {what} in the rerun viewer (needs a display)")
 
 
+DEFAULT_DB_URL = "sqlite:///twin_history.sqlite"  # the history database in the working folder
+
+
+def add_db(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--db", nargs="?", const=DEFAULT_DB_URL, metavar="URL",
+                   help=f"keep {what} in this history database (SQLAlchemy URL, e.g. postgresql+psycopg://host/db for "
+                        "a fleet; --db alone: twin_history.sqlite in the working folder); an unreachable one is "
+                        "reported in one line and the run goes on")
+
+
+def keep_history(url: str | None, write, out) -> dict | None:
+    """``write(history)`` into the database at ``url`` (None: none asked for); a database that cannot be used is
+    one warning line, and the command's result stands."""
+    if not url:
+        return None
+    from tuner.history import History, HistoryError, display
+
+    try:
+        history = History(url)
+        try:
+            return {"db": display(url), "run": write(history)}
+        finally:
+            history.close()
+    except HistoryError as e:
+        out.say(f"warning: {e}; the result stands")
+        return {"db": display(url), "error": str(e)}
+
+
+def check_db(url: str | None) -> None:
+    """Bad input refused before the work: see :func:`tuner.history.check_db`."""
+    if url:
+        from tuner.history import check_db as check
+
+        check(url)
+
+
 def add_verbose(p: argparse.ArgumentParser, quiet: bool = False) -> None:
     p.add_argument("-v", "--verbose", action="store_true", help="log what happens (stderr)")
     if quiet:

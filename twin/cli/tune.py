@@ -29,6 +29,7 @@ from twin.model.parameter_files import save_values
 from tuner.search.gradient import DescentOptions, descend, sequential
 from tuner.search.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk, held_out_seeds, label
 from tuner.search.objective import LapObjective
+from tuner.history import record_lap
 from tuner.recording import save_tuning
 from tuner.search.start import rescue_start
 from tuner.search.space import DEFAULT_BOUNDS, SearchSpace, TunerError, robot_bounds
@@ -78,6 +79,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    action=o.deprecated(argparse._StoreAction, "--workers"), help=argparse.SUPPRESS)
     o.add_out(p, "the best values: a gains file (--gains) for control.* parameters, else a parameter file (--params)",
               "FILE.json")
+    o.add_db(p, "the tuned gains and their lap")
     o.add_json(p)
     o.add_recording(p, "the tuning run (lap time and parameters per iteration, best lap)")
     o.add_verbose(p, quiet=True)
@@ -130,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         check_output_file(args.out, json_is_ours, "parameter file")
     recording.check_targets(args.save, args.view)
+    o.check_db(args.db)
     twin = o.twin_from_args(args)
     searched = args.param or list(DEFAULT_BOUNDS)
     derived = {a: b for a, b in robot_bounds(twin).items() if a in searched}
@@ -198,6 +201,9 @@ def run(args: argparse.Namespace) -> int:
         twin.update(values)
         best_lap = run_laps(twin, [{}], seed=args.seed)[0]
         summary["recording"] = save_tuning(args.save, args.view, twin, space, iterations, best_lap, per_iteration)
+    summary["history"] = o.keep_history(args.db, lambda h: record_lap(
+        h, twin, final, "tune", {"values": values, "cost_s": best.cost, "converged": converged, "reason": reason},
+        {a: v for a, v in values.items() if a.startswith("control.")}), out)
     out.document(summary)
     t_final = f"{final.lap_time_s:.3f} s" if final.completed else f"not completed ({final.failure})"
     out.say(f"{args.method}: lap {objective.first.cost:.3f} s → {t_final} in {len(iterations)} iterations, "

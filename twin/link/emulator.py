@@ -6,6 +6,13 @@ serial device.
 Each lap is simulated ahead of time (from the start line, as the robot crosses it) and then streamed with its
 own sample times, offset by the laps before it; lap k uses noise seed ``seed + k``.
 
+It speaks wire version 2 (:mod:`twin.telemetry.wire`): its id in every header, and the twin's commands answered
+between lines by its :class:`twin.link.robot_end.RobotEnd`; gains a SET changed take effect at the next lap start,
+which is simulated only then. A hidden parameter may drift (:class:`Drift`: worn tyres, a tiring battery), linearly
+from lap to lap. With ``lockstep`` the robot waits after each lap until the twin has sent it a command (a live twin
+that acts sends one every lap): at any ``speed`` the laps then run with the gains the twin chose after the lap
+before, as they would at real time on a twin that keeps up.
+
 It never outlives its purpose: with nobody reading (no TCP client connected, or a pty whose buffer stays full)
 for ``idle_timeout_s`` it stops (:class:`NoReader`). A TCP client that leaves is waited for again, for that long,
 so a reader that restarts carries on with the same robot.
@@ -22,25 +29,78 @@ import struct
 import termios
 import time
 import tty
-from typing import Callable, Iterator
+import dataclasses
+from typing import Callable, Iterator, Sequence
 
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.core.lap import COL
+from twin.link.robot_end import RobotEnd
+from twin.model.space import ChangeCost
 from twin.telemetry.wire import Event, Header, Sample, WireError, decode, encode
 
 log = logging.getLogger(__name__)
 
 
-def lap_records(twin: DigitalTwin, seed: int, every: int, laps: int | None) -> Iterator[tuple[float, str]]:
-    """(time since power-up [s], wire line) for lap after lap."""
+@dataclasses.dataclass(frozen=True)
+class Drift:
+    """A hidden parameter that drifts linearly from ``start`` (lap 0) to ``end`` (lap ``laps``), then stays."""
+
+    address: str
+    start: float
+    end: float
+    laps: int
+
+    def at(self, lap: int) -> float:
+        return self.start + (self.end - self.start) * min(lap / self.laps, 1.0)
+
+    @classmethod
+    def parse(cls, text: str, twin: DigitalTwin) -> "Drift":
+        """``ADDRESS=START:END@LAPS``, checked against the model space (a parameter that rebuilds the robot
+        cannot change between laps)."""
+        address, eq, rest = text.partition("=")
+        span, at, laps = rest.partition("@")
+        start, colon, end = span.partition(":")
+        try:
+            if not (eq and at and colon):
+                raise ValueError
+            drift = cls(address.strip(), float(start), float(end), int(laps))
+        except ValueError:
+            raise TwinError(f"--drift {text}: expected ADDRESS=START:END@LAPS, e.g. motion.mu=0.9:0.55@80") from None
+        p = twin.space.parameter(drift.address)
+        if p.cost is ChangeCost.REBUILD:
+            raise TwinError(f"--drift {drift.address}: rebuilds the robot or track, so it cannot drift between laps")
+        if drift.laps < 1:
+            raise TwinError(f"--drift {text}: LAPS must be at least 1")
+        p.check(f"--drift {drift.address} start", drift.start)
+        p.check(f"--drift {drift.address} end", drift.end)
+        return drift
+
+
+def drifted(drifts: Sequence[Drift], lap: int) -> dict[str, float]:
+    return {d.address: d.at(lap) for d in drifts}
+
+
+def _header(twin: DigitalTwin, every: int, robot: RobotEnd | None, gains_seq: int) -> str:
+    count, dt = int(twin.space.get("sensor.count")), twin.space.get("control.dt")
+    return encode(Header(count, dt, every) if robot is None else Header(count, dt, every, robot.robot_id, gains_seq))
+
+
+def lap_records(twin: DigitalTwin, seed: int, every: int, laps: int | None, robot: RobotEnd | None = None,
+                drifts: Sequence[Drift] = ()) -> Iterator[tuple[float, str]]:
+    """(time since power-up [s], wire line) for lap after lap. With a ``robot`` (wire version 2) its BOOT line
+    comes first and each lap runs with the gains in force at its start; without one, version 1 lines."""
     offset = 0.0
-    header = encode(Header(int(twin.space.get("sensor.count")), twin.space.get("control.dt"), every))
     k = 0
+    if robot is not None:
+        yield 0.0, _header(twin, every, robot, robot.seq)
+        yield 0.0, robot.boot(0.0)
     while laps is None or k < laps:
-        lap = run_laps(twin, [{}], seed=seed + k)[0]
-        yield offset, header
+        gains, gains_seq = robot.lap_start() if robot is not None else ({}, 0)
+        values = {**gains, **drifted(drifts, k)}
+        lap = run_laps(twin, [values], seed=seed + k)[0]
+        yield offset, _header(twin, every, robot, gains_seq)
         yield offset, encode(Event(offset, "START"))
         for r in lap.trace.records[::every]:
             t = offset + float(r[COL["time_s"]])
@@ -49,13 +109,14 @@ def lap_records(twin: DigitalTwin, seed: int, every: int, laps: int | None) -> I
         end = offset + (lap.lap_time_s if lap.completed else lap.simulated_s)
         yield end, encode(Event(end, "LAP", lap_time_s=lap.lap_time_s) if lap.completed
                           else Event(end, "FAIL", reason=lap.failure))
-        log.info("lap %d: %s", k, f"{lap.lap_time_s:.3f} s" if lap.completed else lap.failure)
+        log.info("lap %d: %s (%s)", k, f"{lap.lap_time_s:.3f} s" if lap.completed else lap.failure,
+                 ", ".join(f"{a}={v:.4g}" for a, v in values.items()) or "as built")
         offset = end
         k += 1
 
 
 def firmware_lap_records(twin: DigitalTwin, elf: str | None, seed: int, every: int, laps: int | None,
-                         operator=None) -> Iterator[tuple[float, str]]:
+                         operator=None, drifts: Sequence[Drift] = ()) -> Iterator[tuple[float, str]]:
     """(time since power-up [s], wire line) for lap after lap of the robot's own firmware on the emulated MCU
     (:func:`twin.pil.lap.run_pil_lap`): its UART lines as it sent them, and after each lap the LAP or FAIL event of a
     timing gate at the finish line (the robot itself cannot tell a lap from the next). Any other 3pi program runs
@@ -69,6 +130,8 @@ def firmware_lap_records(twin: DigitalTwin, elf: str | None, seed: int, every: i
     offset, k = 0.0, 0
     while laps is None or k < laps:
         lines: list[tuple[float, str]] = []
+        if drifts:
+            twin.update(drifted(drifts, k))
         if program is not None and not program.traced:
             lap, report = run_board_lap(twin, program, seed=seed + k, keep_trace=False,
                                         operator=operator() if operator else Operator(),
@@ -104,9 +167,59 @@ def _sample_time(line: str) -> float | None:
     return record.t if isinstance(record, Sample) else None
 
 
+class CommandPort:
+    """The receiving side of the emulator's link: what the twin sends, handed to the robot's end, answered at once.
+
+    Args:
+      receive: waits at most ``timeout`` [s] for bytes from the twin; b"" if none came (or the link has no way back).
+      robot: the robot's end of the command link.
+      lockstep: wait after each lap for a command (at most ``idle_timeout_s``; then :class:`NoReader`).
+    """
+
+    def __init__(self, receive: Callable[[float], bytes], robot: RobotEnd, lockstep: bool = False,
+                 idle_timeout_s: float = 60.0, laps: int | None = None):
+        self.receive, self.robot, self.lockstep, self.idle_timeout_s = receive, robot, lockstep, idle_timeout_s
+        self.laps, self.ended = laps, 0  # after its last lap the robot waits for nothing
+
+    def serve(self, timeout: float, send: Callable[[str], None]) -> None:
+        """Answer what arrives within ``timeout`` [s] (0: only what is there now)."""
+        end = time.monotonic() + timeout
+        while True:
+            data = self.receive(max(0.0, end - time.monotonic()))
+            for answer in self.robot.receive(data) if data else ():
+                send(answer)
+            if time.monotonic() >= end:
+                return
+
+    def await_command(self, send: Callable[[str], None]) -> None:
+        """Lockstep: after a lap (but its last), wait for the twin's next command (answered). A twin that closed
+        the link is gone (:class:`ConnectionResetError`: a TCP robot then waits for the next one)."""
+        self.ended += 1
+        if self.laps is not None and self.ended >= self.laps:
+            return
+        seen, end = self.robot.received, time.monotonic() + self.idle_timeout_s
+        while self.robot.received == seen:
+            if time.monotonic() > end:
+                raise NoReader(f"lockstep: no command from the twin for {self.idle_timeout_s:g} s after a lap")
+            if getattr(self.receive, "closed", False):
+                raise ConnectionResetError("lockstep: the twin closed the link")
+            self.serve(0.05, send)
+
+
+def _lap_end(line: str) -> bool:
+    return line.startswith("$LFE,") and (",LAP," in line or ",FAIL," in line)
+
+
 def stream(lines: Iterator[tuple[float, str]], write: Callable[[bytes], None], speed: float,
-           echo: Callable[[str], None] | None = None) -> None:
-    """Write lines when their time comes: simulated time / speed after the first line."""
+           echo: Callable[[str], None] | None = None, commands: CommandPort | None = None) -> None:
+    """Write lines when their time comes: simulated time / speed after the first line; with ``commands``, answer
+    the twin's commands between lines (and in lockstep, wait for one after each lap)."""
+
+    def send(line: str) -> None:
+        write(line.encode("ascii"))
+        if echo:
+            echo(line)
+
     start = None
     for t, line in lines:
         now = time.monotonic()
@@ -114,12 +227,19 @@ def stream(lines: Iterator[tuple[float, str]], write: Callable[[bytes], None], s
             start = now - t / speed
         delay = start + t / speed - now
         if delay > 0:
-            time.sleep(delay)
+            if commands is not None:
+                commands.serve(delay, send)
+            else:
+                time.sleep(delay)
         elif delay < -0.5:  # fell behind (a lap was being simulated): carry on from here, keep the spacing
             start -= delay
-        write(line.encode("ascii"))
-        if echo:
-            echo(line)
+        elif commands is not None:
+            commands.serve(0.0, send)
+        send(line)
+        if commands is not None and commands.lockstep and _lap_end(line):
+            waited = time.monotonic()
+            commands.await_command(send)
+            start += time.monotonic() - waited  # the robot's clock stood still while it waited
 
 
 class NoReader(Exception):

@@ -16,6 +16,10 @@
 * **Responsive.** A read returns what has arrived within ``READ_TIMEOUT_S`` (0.1 s), newline or not, so a stop
   request or ``--duration`` is seen within that; a line longer than :data:`twin.telemetry.wire.MAX_LINE` is logged but not
   kept in memory, and counts as one corrupted line.
+* **Commands go out between reads.** What the twin has queued for the robot (:class:`Outbox`) is written after each
+  read, while the link is open, within ``READ_TIMEOUT_S`` of being queued; a command still queued when its
+  deadline passes (the link was down) is dropped, not sent late. Nothing the twin sends reaches the log: the log
+  is what the robot sent.
 * **Bounded retries.** A link that stays down (cannot be opened, or keeps dropping without delivering a byte)
   for ``retry_s`` wall seconds (default ``RETRY_S`` = 30 s) gives up with :class:`LinkGaveUp`, unless retrying
   forever is asked for; reopening backs off exponentially from 0.05 s up to 2 s. A URL pyserial cannot parse,
@@ -31,6 +35,7 @@ import logging
 import os
 import select
 import stat
+import threading
 import time
 from typing import Callable
 
@@ -43,6 +48,7 @@ log = logging.getLogger(__name__)
 
 READ_TIMEOUT_S = 0.1  # [s] the longest a read waits: how late a stop request or --duration is seen
 READ_CHUNK = 65536  # [bytes] per read at most
+WRITE_TIMEOUT_S = 1.0  # [s] a robot that takes no command for this long: the link counts as dropped
 RETRY_S = 30.0  # [s] without a link before giving up
 BACKOFF_S = (0.05, 2.0)  # [s] first and longest wait between attempts to reopen
 BAUD = 115200
@@ -59,6 +65,30 @@ class LinkStats:
     reconnects: int = 0  # failed opens and drops
     robot_laps: int = 0  # LAP and FAIL events received
     implausible_laps: int = 0  # laps that failed the plausibility checks (see twin.telemetry.laps)
+
+
+class Outbox:
+    """Lines for the robot, queued by the twin from any thread and written by the reader while the link is open.
+    Each line has a deadline (wall clock, ``time.monotonic``): one still queued after it is dropped."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._queue: list[tuple[float, bytes]] = []
+        self.sent = 0  # lines written
+        self.dropped = 0  # lines whose deadline passed before the link could take them
+
+    def put(self, line: bytes, deadline: float) -> None:
+        with self._lock:
+            self._queue.append((deadline, line))
+
+    def take(self) -> bytes:
+        now = time.monotonic()
+        with self._lock:
+            live = [line for deadline, line in self._queue if deadline >= now]
+            self.dropped += len(self._queue) - len(live)
+            self._queue.clear()
+        self.sent += len(live)
+        return b"".join(live)
 
 
 def check_port(url: str) -> None:
@@ -89,7 +119,7 @@ def open_port(url: str):
 
     check_port(url)
     device = "://" not in url
-    port = serial.serial_for_url(url, do_not_open=True, baudrate=BAUD, timeout=READ_TIMEOUT_S,
+    port = serial.serial_for_url(url, do_not_open=True, baudrate=BAUD, timeout=READ_TIMEOUT_S, write_timeout=WRITE_TIMEOUT_S,
                                  **({"exclusive": True} if device else {}))
     # pyserial flushes the input in open() (posix: _reset_input_buffer; socket: reset_input_buffer); keep it
     port._reset_input_buffer = port.reset_input_buffer = lambda: None
@@ -131,11 +161,12 @@ class _Backoff:
 
 
 def read_link(url: str, out: DurableLog, on_line: Callable[[bytes], bool], on_idle: Callable[[], None],
-              stats: LinkStats, stop: Callable[[], bool], retry_s: float | None = RETRY_S) -> None:
+              stats: LinkStats, stop: Callable[[], bool], retry_s: float | None = RETRY_S,
+              outbox: Outbox | None = None) -> None:
     """Read ``url`` until ``stop()`` says so: every byte to ``out``, every complete line to ``on_line`` (which
-    returns True for a lap event: the log is then fsynced), ``on_idle`` when a read brings nothing. Reopens a
-    dropped link with backoff; raises :class:`LinkGaveUp` once the link has been down for ``retry_s`` wall
-    seconds (None: never give up)."""
+    returns True for a lap event: the log is then fsynced), ``on_idle`` when a read brings nothing; what the
+    ``outbox`` holds is written to the robot between reads. Reopens a dropped link with backoff; raises
+    :class:`LinkGaveUp` once the link has been down for ``retry_s`` wall seconds (None: never give up)."""
     import serial
 
     backoff = _Backoff(retry_s)
@@ -149,7 +180,7 @@ def read_link(url: str, out: DurableLog, on_line: Callable[[bytes], bool], on_id
         backoff.opened()
         lines, dropped = LineSplitter(), None
         try:
-            _read_open_port(port, out, lines, on_line, on_idle, stats, stop, backoff)
+            _read_open_port(port, out, lines, on_line, on_idle, stats, stop, backoff, outbox)
         except (serial.SerialException, OSError) as e:
             log.warning("link %s dropped (%s); reopening", url, _first_line(e))
             stats.reconnects += 1
@@ -192,8 +223,13 @@ def read_available(port) -> bytes:
 
 
 def _read_open_port(port, out: DurableLog, lines: LineSplitter, on_line, on_idle, stats: LinkStats, stop,
-                    backoff: _Backoff) -> None:
+                    backoff: _Backoff, outbox: Outbox | None = None) -> None:
     while not stop():
+        if outbox is not None:
+            pending = outbox.take()
+            if pending:
+                port.write(pending)
+                port.flush()
         data = read_available(port)
         if not data:
             out.maybe_sync()

@@ -25,7 +25,7 @@ import time
 from typing import Iterator
 
 from lf_common.errors import OutputError
-from lf_common.files import GENERATOR, jsonl_is_ours
+from lf_common.files import GENERATOR, ends_with_newline, jsonl_is_ours
 from twin.errors import TwinError
 from twin.telemetry.wire import LineSplitter
 
@@ -102,14 +102,14 @@ class DurableLog:
             index = open(self.index_path, "ab", buffering=0)
             if index.tell() == 0:
                 index.write(_json_line({"generator": GENERATOR, "kind": BREAKS_KIND, "log": os.path.basename(self.path)}))
-            elif not _ends_with_newline(self.index_path):
+            elif not ends_with_newline(self.index_path):
                 index.write(b"\n")  # a mark torn by a power loss: ours, so it is ended rather than continued
         except OSError as e:
             raise TwinError(f"{self.index_path}: cannot write the telemetry log's break index ({_why(e)})") from None
         return index
 
     def _ends_mid_line(self) -> bool:
-        return not _ends_with_newline(self.path)
+        return not ends_with_newline(self.path)
 
     def _failed(self, path: str, e: OSError) -> LogWriteError:
         self.failed = LogWriteError(f"{path}: cannot write the telemetry log{' break index' if path != self.path else ''} "
@@ -162,13 +162,6 @@ class DurableLog:
 def _json_line(doc: dict) -> bytes:
     return (json.dumps(doc, separators=(",", ":")) + "\n").encode()
 
-
-def _ends_with_newline(path: str) -> bool:
-    with open(path, "rb") as f:
-        if f.seek(0, os.SEEK_END) == 0:
-            return True
-        f.seek(-1, os.SEEK_END)
-        return f.read(1) == b"\n"
 
 
 def read_breaks(log_path: str) -> list[int]:

@@ -27,6 +27,10 @@ class RobotLap:
     wl: np.ndarray
     wr: np.ndarray
     implausible: str | None = None  # why this lap cannot be what a robot on this track did
+    robot: str | None = None  # the robot's id from the lap's header (None: a version 1 robot)
+    gains_seq: int | None = None  # the command whose gains were in force, from the lap's header (0: as booted)
+    failure: str | None = None  # the FAIL event's reason
+    sensors: int = 8  # the header's sensor count: positions run 0 … (sensors − 1)·1000
 
 
 SPAN_TOLERANCE_S = 0.05  # a LAP's lap time may differ from its START→LAP span by this much, plus …
@@ -42,6 +46,7 @@ class LapAssembler:
     def __init__(self, track_length_m: float = 0.0, max_lap_s: float = math.inf):
         self.track_length_m, self.max_lap_s = track_length_m, max_lap_s
         self.sensors = DEFAULT_SENSORS
+        self.header: Header | None = None  # the last header: the robot's id and the gains in force
         self.start: float | None = None
         self.rows: list[tuple[float, float, float, float]] = []
         self.problem: str | None = None  # the first implausibility seen in the current lap
@@ -49,7 +54,7 @@ class LapAssembler:
 
     def feed(self, rec) -> RobotLap | None:
         if isinstance(rec, Header):
-            self.sensors = rec.sensors
+            self.sensors, self.header = rec.sensors, rec
             return None
         if isinstance(rec, Event) and rec.event == "START":
             self.start, self.rows, self.problem = rec.t, [], None
@@ -67,7 +72,9 @@ class LapAssembler:
         if isinstance(rec, Event) and rec.event in ("LAP", "FAIL"):
             problem = self.problem or (self._judge_lap(rec) if rec.event == "LAP" else None)
             a = np.array(self.rows) if self.rows else np.zeros((0, 4))
-            lap = RobotLap(self.count, rec.lap_time_s, a[:, 0], a[:, 1], a[:, 2], a[:, 3], problem)
+            h = self.header
+            lap = RobotLap(self.count, rec.lap_time_s, a[:, 0], a[:, 1], a[:, 2], a[:, 3], problem,
+                           h.robot if h else None, h.gains_seq if h else None, rec.reason, self.sensors)
             self.count += 1
             self.start, self.rows, self.problem = None, [], None
             return lap

@@ -1,0 +1,19 @@
+"""A robot's life, kept (paper §4.2, §5: through-life service): what the live twin did, journaled beside its
+telemetry log (:mod:`tuner.history.journal`); the history database of robots, runs, laps, alignments and gain
+changes (SQLAlchemy, created and upgraded by Alembic migrations: :mod:`tuner.history.store`,
+:mod:`tuner.history.schema`), written as live runs (:class:`HistoryWriter`) or rebuilt from the logs
+(:func:`rebuild_log`), and by ``lap``, ``tune``, ``align`` (:mod:`tuner.history.commands`); the trend of each aligned
+parameter (:func:`trend_of`) and the forecast of when the gains in force stop finishing, raced on the twin along it
+(:func:`forecast_failure`)."""
+
+from tuner.history.commands import record_alignment, record_fit, record_lap
+from tuner.history.forecast import Forecast, first_failure, forecast_failure
+from tuner.history.journal import Journal, actions_path, check_journal, read_journal
+from tuner.history.rebuild import log_laps, rebuild_log
+from tuner.history.store import DEFAULT_DB, History, HistoryError, check_db, default_url, display
+from tuner.history.trend import Trend, trend_of
+from tuner.history.writer import HistoryWriter
+
+__all__ = ["DEFAULT_DB", "Forecast", "History", "HistoryError", "HistoryWriter", "Journal", "Trend", "actions_path",
+           "check_db", "check_journal", "default_url", "display", "first_failure", "forecast_failure", "log_laps",
+           "read_journal", "rebuild_log", "record_alignment", "record_fit", "record_lap", "trend_of"]

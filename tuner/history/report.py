@@ -1,0 +1,121 @@
+"""``history``: per robot, its laps, the changes of its gains, the trend of each aligned parameter, and the forecast
+of when the gains in force stop finishing (:mod:`tuner.history.forecast`), read from the history database.
+
+A robot's laps are numbered across its runs (:func:`robot_laps`): the laps of each telemetry log follow those of
+the logs before it (by when their first session began), so trends span every run.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import sqlalchemy as sa
+
+from tuner.history import schema as s
+from tuner.history.forecast import forecast_failure
+from tuner.history.store import History
+from tuner.history.trend import trend_of
+from twin.core.digital_twin import DigitalTwin
+from twin.errors import TwinError
+from twin.telemetry.wire import GAIN_ADDRESSES
+
+TREND_POINTS = 6  # the trend is fitted to the last this many alignments
+
+
+def robots(history: History, name: str | None = None) -> list[dict]:
+    with history.begin() as c:
+        q = sa.select(s.robots).order_by(s.robots.c.name)
+        if name is not None:
+            q = q.where(s.robots.c.name == name)
+        rows = [dict(r._mapping) for r in c.execute(q)]
+    if name is not None and not rows:
+        raise TwinError(f"--robot {name}: no such robot in the history database")
+    return rows
+
+
+def robot_laps(c, robot_id: int) -> tuple[list[dict], dict]:
+    """The robot's laps in order, each with ``n`` (its number across runs), and the offset of each run's laps."""
+    runs = [dict(r._mapping) for r in c.execute(sa.select(s.runs).where(s.runs.c.robot_id == robot_id))]
+    logs: dict[str, list[dict]] = {}
+    for r in runs:
+        logs.setdefault(r["log_path"] or r["source"], []).append(r)
+    order = sorted(logs, key=lambda k: min((r["started"] or math.inf) for r in logs[k]))
+    laps, offsets, base = [], {}, 0
+    for key in order:
+        ids = [r["id"] for r in logs[key]]
+        rows = [dict(x._mapping) for x in c.execute(sa.select(s.laps).where(s.laps.c.run_id.in_(ids))
+                                                    .order_by(s.laps.c.lap))]
+        for r in logs[key]:
+            offsets[r["id"]] = base
+        for row in rows:
+            row["n"] = base + row["lap"]
+            laps.append(row)
+        base += (max(r["lap"] for r in rows) + 1) if rows else 0
+    return laps, offsets
+
+
+def _changes(c, robot_id: int, offsets: dict) -> list[dict]:
+    rows = c.execute(sa.select(s.gain_changes).where(s.gain_changes.c.robot_id == robot_id).order_by(s.gain_changes.c.id))
+    out = []
+    for r in rows:
+        d = dict(r._mapping)
+        base = offsets.get(d["run_id"], 0)
+        for k in ("decided_lap", "first_lap"):
+            if d[k] is not None:
+                d[k] += base
+        out.append({k: d[k] for k in ("seq", "kind", "status", "decided_lap", "first_lap", "gains", "reason",
+                                      "predicted_lap_time_s", "nak_reason", "outcome")})
+    return out
+
+
+def _alignments(c, robot_id: int, offsets: dict) -> list[dict]:
+    rows = c.execute(sa.select(s.alignments).where(s.alignments.c.robot_id == robot_id).order_by(s.alignments.c.id))
+    out = []
+    for r in rows:
+        d = dict(r._mapping)
+        if d["lap"] is None:
+            continue  # an alignment of the twin alone (align): no place among the robot's laps
+        out.append({"lap": d["lap"] + offsets.get(d["run_id"], 0), "address": d["address"], "value": d["value"],
+                    "interval": [d["lo"], d["hi"]] if d["lo"] is not None else None, "explained": d["explained"],
+                    "measured_lap_time_s": d["measured_lap_time_s"]})
+    return out
+
+
+def gains_in_force(laps: list[dict], changes: list[dict]) -> dict | None:
+    """The gains of the robot's last lap (the twin's record of them), else of its last confirmed change."""
+    for row in reversed(laps):
+        if row["gains"]:
+            return {a: row["gains"][a] for a in GAIN_ADDRESSES if a in row["gains"]}
+    done = [ch for ch in changes if ch["status"] in ("confirmed", "in_force")]
+    return done[-1]["gains"] if done else None
+
+
+def report(history: History, twin: DigitalTwin | None, name: str | None = None, seed: int = 0) -> list[dict]:
+    """Per robot: laps, changes, trends and (with a ``twin``) the forecast and advice."""
+    out = []
+    for robot in robots(history, name):
+        with history.begin() as c:
+            laps, offsets = robot_laps(c, robot["id"])
+            changes = _changes(c, robot["id"], offsets)
+            aligned = _alignments(c, robot["id"], offsets)
+        done = [r["lap_time_s"] for r in laps if r["completed"]]
+        entry = {"robot": robot["name"], "kind": robot["kind"], "first_seen": robot["first_seen"],
+                 "last_seen": robot["last_seen"], "laps": len(laps), "completed": len(done),
+                 "failed": sum(not r["completed"] for r in laps),
+                 "median_lap_time_s": float(np.median(done)) if done else None,
+                 "lap_times": [{"n": r["n"], "lap_time_s": r["lap_time_s"], "completed": r["completed"],
+                                "failure": r["failure"], "gains_seq": r["gains_seq"],
+                                "twin_lap_time_s": r["twin_lap_time_s"]} for r in laps],
+                 "changes": changes, "alignments": aligned, "trends": {}, "forecast": None, "advice": []}
+        for address in sorted({a["address"] for a in aligned}):
+            t = trend_of(aligned, address, TREND_POINTS)
+            entry["trends"][address] = t.summary() if t else None
+        gains = gains_in_force(laps, changes)
+        entry["gains_in_force"] = gains
+        trends = [t for t in (trend_of(aligned, a, TREND_POINTS) for a in entry["trends"]) if t is not None]
+        if twin is not None and trends and gains and laps:
+            f = forecast_failure(twin, gains, trends[0], laps[-1]["n"], seed=seed)
+            entry["forecast"], entry["advice"] = f.summary(), list(f.advice)
+        out.append(entry)
+    return out

@@ -1,0 +1,135 @@
+"""``history``: a robot's life from the history database: its laps, its changes of gains, the trend of each aligned
+parameter, and when the gains in force will stop finishing (asked of the twin along the trend), with advice;
+``--rebuild`` puts telemetry logs (and the actions journaled beside them) back into the database, idempotently."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+
+from lf_common.files import input_file, output_dir
+from tuner.history import History, check_db, display, rebuild_log
+from tuner.history.charts import robot_chart
+from tuner.history.report import report
+from tuner.recording import save_history
+from twin.cli import options as o
+from twin.cli.output import Output
+from twin.errors import TwinError
+from twin.viz import recording
+
+HELP = "a robot's life from the history database: laps, gain changes, trends, a forecast and advice"
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("history", help=HELP, description=__doc__ + (
+        " The forecast races the gains in force on the twin the world flags describe (--track, --robot, --set, …: "
+        "give the robot's), along the trend of the last aligned values."))
+    p.add_argument("--db", nargs="?", const=o.DEFAULT_DB_URL, default=o.DEFAULT_DB_URL, metavar="URL",
+                   help="the history database (SQLAlchemy URL; default twin_history.sqlite in the working folder)")
+    p.add_argument("--robot-id", metavar="ID", help="only this robot (its wire id; 'twin' for lap, tune and align runs)")
+    p.add_argument("--rebuild", action="store_true", help="rebuild the database's rows of each --log from the log and "
+                   "the actions beside it (<log>.actions); running it again changes nothing")
+    p.add_argument("--log", action="append", metavar="FILE", help="a telemetry log of live (with --rebuild), repeatable")
+    p.add_argument("--no-forecast", action="store_true", help="report without racing the twin")
+    o.add_world(p)
+    o.add_values(p, "the robot's model-space parameter, for the forecast, repeatable")
+    o.add_seed(p, 0, "the forecast's first noise seed")
+    o.add_out_dir(p, "a chart per robot (history_<robot>.png) and history.json", None)
+    o.add_json(p)
+    o.add_recording(p, "each robot's lap times, aligned parameters and gain changes")
+    o.add_verbose(p)
+    p.set_defaults(run=run)
+
+
+def _existing(url: str) -> None:
+    """Reading a history must not create one: a SQLite file that is not there is bad input."""
+    check_db(url)
+    if url.startswith("sqlite:///"):
+        path = url.removeprefix("sqlite:///")
+        if path and not os.path.exists(path):
+            raise TwinError(f"--db {url}: no history database there (live, lap, tune and align write one with --db)")
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Output(args.json)
+    if args.log and not args.rebuild:
+        raise TwinError("history --log: give --rebuild to put the logs into the database")
+    if args.rebuild:
+        if not args.log:
+            raise TwinError("history --rebuild: give each telemetry log with --log FILE")
+        for path in args.log:
+            input_file(path, "telemetry log")
+        check_db(args.db)
+        return _rebuild(args, out)
+    _existing(args.db)
+    recording.check_targets(args.save, args.view)
+    if args.out_dir:
+        from lf_common.files import check_output_dir
+
+        check_output_dir(args.out_dir, "history folder")
+    twin = None if args.no_forecast else o.twin_from_args(args)
+    history = History(args.db)
+    try:
+        entries = report(history, twin, args.robot_id, args.seed)
+    finally:
+        history.close()
+    charts = []
+    if args.out_dir:
+        with output_dir(args.out_dir, "history folder") as tmp:
+            for e in entries:
+                name = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in e["robot"])
+                charts.append(os.path.join(os.path.abspath(args.out_dir), os.path.basename(
+                    robot_chart(e, os.path.join(tmp, f"history_{name}.png")))))
+            with open(os.path.join(tmp, "history.json"), "w", encoding="utf-8") as f:
+                json.dump({"generator": "line-follower-twin", "robots": entries}, f, indent=1, default=_json)
+    saved = save_history(args.save, args.view, entries)
+    out.document({"db": display(args.db), "robots": entries, "charts": charts, "recording": saved})
+    for e in entries:
+        _say(out, e)
+    for what in charts + ([saved] if saved else []):
+        out.say(f"wrote {what}")
+    return 0
+
+
+def _json(v):
+    return None if isinstance(v, float) and not math.isfinite(v) else str(v)
+
+
+def _say(out: Output, e: dict) -> None:
+    median = f", median lap {e['median_lap_time_s']:.3f} s" if e["median_lap_time_s"] else ""
+    out.say(f"{e['kind']} {e['robot']}: {e['laps']} laps, {e['completed']} completed, {e['failed']} failed{median}")
+    for ch in e["changes"]:
+        out.say(f"  gains #{ch['seq']} ({ch['kind']}, decided at lap {ch['decided_lap']}): {ch['status']}"
+                + (f" — {ch['outcome']}" if ch["outcome"] else ""))
+    for address, t in e["trends"].items():
+        if t:
+            out.say(f"  {address}: {t['slope']:+.3g} per lap (± {1.96 * t['slope_se']:.2g}, 95 %) over "
+                    f"{t['points']} alignments, {t['intercept'] + t['slope'] * t['last_lap']:.4g} at lap {t['last_lap']}")
+    f = e["forecast"]
+    if f:
+        if f["laps_to_failure"] is None:
+            out.say(f"  forecast: {f['note']}")
+        else:
+            lo, hi = f["interval"]
+            hi_s = "∞" if hi is None else f"{hi:.0f}"
+            out.say(f"  forecast: {f['note']}: in {f['laps_to_failure']:.0f} laps (95 %: {lo:.0f}–{hi_s}) from lap "
+                    f"{f['now_lap']}")
+    for a in e["advice"]:
+        out.say(f"  advice: {a}")
+
+
+def _rebuild(args, out: Output) -> int:
+    history = History(args.db)
+    done = []
+    try:
+        for path in args.log:
+            r = rebuild_log(history, path)
+            done.append(r)
+            out.say(f"rebuilt {r['laps']} laps and {r['journal_records']} journaled records of {r['log']} "
+                    f"(replacing {r['runs_replaced']} runs) in {display(args.db)}")
+    finally:
+        history.close()
+    out.document({"db": display(args.db), "rebuilt": done})
+    return 0
