@@ -95,6 +95,18 @@ def test_ctrl_c_from_the_first_instant_is_clean(delay_s):
     assert code == 130 or (code in (0, -signal.SIGINT) and "lap completed" in out), (code, err[-2000:])
 
 
+def test_no_child_process_starts_while_the_libraries_load():
+    """MuJoCo's OpenGL rendering (unused here) imports pyGLFW, which starts a Python child to probe GLFW; a Ctrl-C
+    while it ran left that child a broken pipe and a traceback on our stderr. Unless the user picks a backend
+    (MUJOCO_GL), start-up leaves rendering off and pyGLFW unimported."""
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    r = subprocess.run([PY, "-X", "importtime", "-m", "twin.run", "lap", "--help"], capture_output=True, text=True,
+                       timeout=120, env=env)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "mujoco.rendering" in r.stderr  # the import trace is there, and MuJoCo's own rendering package loaded
+    assert not [line for line in r.stderr.splitlines() if line.rstrip().endswith("| glfw")]
+
+
 def test_design_workers_die_with_their_parent(tmp_path):
     p = subprocess.Popen([PY, "-m", "twin.run", "design", "--track", "oval", "--grid", "cad.S=0.05,0.06,0.07",
                           "--laps", "50", "--workers", "2", "--out-dir", str(tmp_path / "study"), "-q"],

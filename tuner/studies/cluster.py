@@ -37,6 +37,7 @@ log = logging.getLogger(__name__)
 
 RETRIES = 3  # attempts after a worker dies, per design
 CONNECT_TIMEOUT_S = 60.0  # [s] to join the cluster
+CLIENT_ATTEMPTS = 3  # Ray Client sessions tried when the server fails to start one (a busy head)
 POLL_S = 1.0  # [s] between progress checks
 
 
@@ -65,7 +66,18 @@ def connect(address: str):
     if ray.is_initialized():
         return ray
     try:
-        ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING)
+        for attempt in range(CLIENT_ATTEMPTS):
+            try:
+                ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING)
+                break
+            except ConnectionError as e:
+                # Ray Client's server starts a process of its own for each client; on a busy head that start can
+                # time out ("Initialization failure from server"): the server is there, so try again
+                if "Initialization failure" not in str(e) or attempt == CLIENT_ATTEMPTS - 1:
+                    raise
+                log.warning("--cluster %s: the Ray Client server could not start this client's session; trying again",
+                            address)
+                ray.shutdown()
     except ImportError:  # plain 'ray' has no Ray Client (grpcio): ray:// needs the client extra
         raise ClusterError(f"--cluster {address}: Ray Client is not installed: pip install -e '.[cluster]' "
                            "(it brings ray[client])") from None

@@ -17,7 +17,12 @@ def _leave(signum, frame) -> None:
 
 @contextlib.contextmanager
 def loading():
-    """Ctrl-C ends the process at once inside this block; a failed import is one ``error:`` line, exit 2."""
+    """Ctrl-C ends the process at once inside this block; a failed import is one ``error:`` line, exit 2.
+
+    MuJoCo's OpenGL rendering is turned off unless the user chose a backend (``MUJOCO_GL``): nothing here renders
+    with it (views are rerun's), and with it on, importing MuJoCo imports pyGLFW, which starts a Python child to
+    probe the GLFW library's version; a Ctrl-C that ends us then leaves that child a broken pipe and a traceback."""
+    os.environ.setdefault("MUJOCO_GL", "disable")
     previous = signal.signal(signal.SIGINT, _leave)
     try:
         yield
