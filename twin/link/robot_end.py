@@ -13,12 +13,12 @@ it, and the stored-gains slots of its EEPROM, which the twin's ATmega328P progra
 
 from __future__ import annotations
 
-import binascii
 import logging
 import os
 import struct
 from typing import Mapping
 
+from lf_common.crc import CRC_BYTES, crc_ok, with_crc
 from lf_common.errors import LineFollowerError
 from lf_common.files import atomic_file
 from twin.errors import TwinError
@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 
 MAGIC = b"LFG2"
 SLOT = struct.Struct("<4sHH5i")  # magic, generation, seq, gains in thousandths; then the CRC (uint16)
-SLOT_SIZE = SLOT.size + 2  # 30 bytes
+SLOT_SIZE = SLOT.size + CRC_BYTES  # 30 bytes
 SLOTS = 2
 IMAGE_SIZE = SLOT_SIZE * SLOTS  # the C robot's EEPROM file: the two slots
 COMMAND_MODES = ("answer", "nak", "ignore")
@@ -37,15 +37,14 @@ COMMAND_MODES = ("answer", "nak", "ignore")
 
 def pack_slot(generation: int, seq: int, gains: tuple[int, ...]) -> bytes:
     body = SLOT.pack(MAGIC, generation & 0xFFFF, seq, *gains)
-    return body + struct.pack("<H", binascii.crc_hqx(body, 0))  # CRC-16/XMODEM, as avr-libc's _crc_xmodem_update
+    return with_crc(body)
 
 
 def unpack_slot(raw: bytes) -> tuple[int, int, tuple[int, ...]] | None:
     """(generation, seq, gains) of a good slot; None if it was never written or fails its check."""
-    body, crc = raw[:SLOT.size], raw[SLOT.size:SLOT_SIZE]
-    if len(raw) < SLOT_SIZE or body[:4] != MAGIC or struct.unpack("<H", crc)[0] != binascii.crc_hqx(body, 0):
+    if len(raw) < SLOT_SIZE or raw[:4] != MAGIC or not crc_ok(raw[:SLOT_SIZE]):
         return None
-    magic, generation, seq, *gains = SLOT.unpack(body)
+    magic, generation, seq, *gains = SLOT.unpack(raw[:SLOT.size])
     return generation, seq, tuple(gains)
 
 

@@ -8,7 +8,6 @@ processor-in-the-loop glue in the twin, and with ``avrdude -U eeprom:w:…`` on 
 
 from __future__ import annotations
 
-import binascii
 import functools
 import hashlib
 import os
@@ -17,6 +16,7 @@ import struct
 import subprocess
 
 from lf_common.cache import cache_dir, cached_folder
+from lf_common.crc import with_crc
 from twin.model.control import ControlParams
 from twin.errors import TwinError
 from twin.pil.program import FLASH_BYTES, MCU, RAM_BYTES, TRACE_SYMBOLS, Program, load_program  # noqa: F401 (fw.*)
@@ -69,7 +69,7 @@ def config_image(params: ControlParams, timeout_us: float, telemetry_every: int)
         raise TwinError(f"telemetry every: 1..65535 ticks, got {telemetry_every}")
     body = _BODY.pack(CONFIG_MAGIC, CONFIG_BYTES, params.count, *(getattr(params, f) for f in _PARAM_FIELDS),
                       params.cal_sweeps, round(timeout_us), telemetry_every)
-    return body + struct.pack("<H", binascii.crc_hqx(body, 0))  # CRC-16/XMODEM, as avr-libc's _crc_xmodem_update
+    return with_crc(body)
 
 
 def config_layout() -> dict[str, tuple[int, int]]:
