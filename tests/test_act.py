@@ -124,7 +124,10 @@ def stand_in_retune(monkeypatch):
 
 
 def test_a_bad_tune_is_rolled_back(tmp_path, capsys, stand_in_retune):
-    stand_in_retune.update({**PLAIN, "control.kp": 8.0})  # too soft a steering: the robot loses the line
+    # too soft a steering: the robot loses the line on every noise seed at μ 0.8 (0 of 60 laps finish with K_P 4;
+    # with K_P 8, 5 of 30 did, so the lap on which the change lands, which depends on when the alignment ends,
+    # decided whether it failed)
+    stand_in_retune.update({**PLAIN, "control.kp": 4.0})
     emu = robot(tmp_path, "--laps", 9, "--lockstep", "--set", "motion.mu=0.8", "--echo", tmp_path / "echo.txt")
     code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 9, "--act", "--log", tmp_path / "live.log")
     emu.wait(timeout=60)
