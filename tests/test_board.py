@@ -210,6 +210,25 @@ def test_cli_runs_a_hex_on_the_3pi_and_reports_what_it_showed(build, tmp_path):
     assert set(board["leds"]) == {"final", "changes", "lit_share"} and board["awake_share"] == 1.0
 
 
+def test_a_sweep_runs_a_3pi_program_lap_by_lap_as_lap_does(build, tmp_path):
+    """sweep --firmware PROGRAM: each grid point's lap is the lap `lap` runs with that value (a fresh operator for
+    every lap presses as it did alone), on the 3pi; the program's own gains cannot be swept."""
+    program = hex_of(build("follower"))
+    common = ["--firmware", program, "--track", "oval", "--lap-timeout", "30"]
+    done = cli("sweep", "motion.mu=0.6:1:2", "--seeds", "1", *common, "--json", "--out-dir", str(tmp_path / "s"))
+    assert done.returncode == 0, done.stderr
+    import json
+
+    doc = json.loads(done.stdout)
+    assert doc["base"] is None and doc["firmware"] == program
+    for point in doc["points"]:
+        lap = cli("lap", *common, "--set", f"motion.mu={point['motion.mu']}", "--json")
+        assert lap.returncode == 0, lap.stderr
+        assert point["completion_rate"] == 1.0 and point["median_lap_time_s"] == json.loads(lap.stdout)["lap_time_s"]
+    refused = cli("sweep", "control.kp=10:20:2", *common, "--out-dir", str(tmp_path / "k"))
+    assert refused.returncode == 2 and "keeps its own gains" in refused.stderr and refused.stderr.count("\n") == 1
+
+
 def test_bad_programs_and_inputs_are_one_line_and_exit_2(build, tmp_path):
     src = tmp_path / "main.c"
     src.write_text("int main(void) { for (;;) {} }\n")

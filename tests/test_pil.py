@@ -206,6 +206,22 @@ def test_bad_firmware_files_are_one_line_and_exit_2(pil_ready, tmp_path):
     assert text.read_text() == "not a program"
 
 
+def test_a_sweep_on_the_mcu_gives_each_point_the_lap_that_lap_gives(pil_ready, tmp_path):
+    """sweep --firmware avr: each grid point's lap is the lap `lap --firmware avr` runs with that value (the gains
+    reach the MCU through its EEPROM configuration), and the two gains give two different laps."""
+    done = cli("sweep", "control.kp=10:20:2", "--seeds", "1", "--firmware", "avr", "--json", "--out-dir",
+               str(tmp_path / "sweep"))
+    assert done.returncode == 0, done.stderr
+    points = json.loads(done.stdout)["points"]
+    for point in points:
+        lap = cli("lap", "--firmware", "avr", "--set", f"control.kp={point['control.kp']}", "--json")
+        assert lap.returncode == 0, lap.stderr
+        assert point["median_lap_time_s"] == json.loads(lap.stdout)["lap_time_s"]
+    assert points[0]["median_lap_time_s"] != points[1]["median_lap_time_s"]
+    big = cli("sweep", "motion.mu=0.5:1:100", "--seeds", "10", "--firmware", "avr", "--out-dir", str(tmp_path / "big"))
+    assert big.returncode == 2 and "laps on the emulated MCU" in big.stderr and not (tmp_path / "big").exists()
+
+
 def test_unrunnable_configuration_is_refused_before_the_lap(pil_ready):
     done = cli("lap", "--firmware", "avr", "--set", "sensor.count=10")
     assert done.returncode == 2 and "at most 8 sensors" in done.stderr, done.stderr

@@ -5,6 +5,11 @@ a grid, each grid point raced with several noise seeds; all laps run as one batc
 time (median and spread over the seeds that completed), the completion rate, the largest cross-track error and
 the median energy. One parameter gives a line chart with the failure region shaded; two give heat maps.
 Outputs (CSV, PNG, JSON) are written into a folder of their own, atomically (``lf_common.files.output_dir``).
+
+With a program for the robot's MCU (:func:`sweep_firmware`: the twin's own firmware, or any 3pi program on the
+board) every lap runs cycle by cycle in simavr, one after another on one core (about 5 s a lap), so such a sweep
+holds at most ``MAX_FIRMWARE_LAPS`` laps; a program other than the twin's own keeps its own gains, so ``control.*``
+cannot be swept with it.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ import itertools
 import json
 import math
 import os
-from typing import Sequence
+from typing import Callable, Sequence
 
 import matplotlib
 
@@ -25,11 +30,15 @@ import numpy as np  # noqa: E402
 
 from lf_common.files import GENERATOR, json_safe, output_dir  # noqa: E402
 from twin.core.closed_loop import run_laps  # noqa: E402
+from twin.core.lap import LapLimits, LapResult  # noqa: E402
 from twin.core.digital_twin import DigitalTwin  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
+from twin.pil import run_pil_lap  # noqa: E402
+from twin.pil.board import run_program_lap  # noqa: E402
 from twin.model.space import ChangeCost  # noqa: E402
 
 MAX_LAPS = 20_000  # one batch; ~0.3 MB of state per lap
+MAX_FIRMWARE_LAPS = 500  # laps on the emulated MCU, one after another: ~5 s each, under an hour
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,14 +110,24 @@ def grid_points(axes: Sequence[Axis]) -> list[dict[str, float]]:
     return [dict(zip([a.address for a in axes], map(float, combo))) for combo in itertools.product(*(a.values for a in axes))]
 
 
-def check_size(axes: Sequence[Axis], seeds: int) -> None:
-    """At most ``MAX_LAPS`` laps, counted from the axes before any grid is built (a billion points would take all
-    memory building it)."""
+def check_size(axes: Sequence[Axis], seeds: int, firmware: bool = False) -> None:
+    """At most ``MAX_LAPS`` laps (``MAX_FIRMWARE_LAPS`` on the emulated MCU), counted from the axes before any grid
+    is built (a billion points would take all memory building it)."""
     laps = math.prod(a.count for a in axes) * seeds
-    if laps > MAX_LAPS:
+    limit, what = (MAX_FIRMWARE_LAPS, "laps on the emulated MCU (about 5 s each) allowed") if firmware else \
+        (MAX_LAPS, "one batch holds")
+    if laps > limit:
         points = " × ".join(f"{a.count:,}" for a in axes)
-        raise TwinError(f"sweep: {points} points × {seeds} seeds is {laps:,} laps, more than the {MAX_LAPS:,} one batch "
-                        "holds; use fewer points or seeds")
+        raise TwinError(f"sweep: {points} points × {seeds} seeds is {laps:,} laps, more than the {limit:,} {what}; use "
+                        "fewer points or seeds")
+
+
+def check_program_axes(axes: Sequence[Axis]) -> None:
+    """A 3pi program other than the twin's own firmware has its gains compiled in: ``control.*`` never reaches it."""
+    for a in axes:
+        if a.address.startswith("control."):
+            raise TwinError(f"sweep {a.address}: a 3pi program keeps its own gains (only the twin's own firmware takes "
+                            "control.* from the twin); sweep a parameter of the robot or its world")
 
 
 def sweep(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int], nthread: int = 0) -> list[Point]:
@@ -119,6 +138,38 @@ def sweep(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int], nthread
     laps = run_laps(twin, [g for g in grid for _ in seeds], seed=[s for _ in grid for s in seeds], nthread=nthread,
                     keep_traces=False)
     return points_of(grid, seeds, laps)
+
+
+def sweep_firmware(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int],
+                   lap: Callable[[DigitalTwin, int], LapResult], on_lap: Callable[[LapResult], None] | None = None
+                   ) -> list[Point]:
+    """Every grid point × seed as a lap on the emulated MCU, one after another: ``lap(twin, seed)`` runs one (see
+    :func:`firmware_lap`); points in grid order, as :func:`sweep` gives them. The given twin is not changed."""
+    check_axes(twin, axes)
+    check_size(axes, len(seeds), firmware=True)
+    grid = grid_points(axes)
+    work = twin.clone()  # the grid's values go here, point after point (same addresses each time)
+    laps = []
+    for g in grid:
+        work.update(g)
+        for s in seeds:
+            laps.append(lap(work, s))
+            if on_lap:
+                on_lap(laps[-1])
+    return points_of(grid, seeds, laps)
+
+
+def firmware_lap(program, operator: Callable[[], object] | None = None, limits: LapLimits = LapLimits()
+                 ) -> Callable[[DigitalTwin, int], LapResult]:
+    """One lap of ``program`` (None: the twin's own firmware built from its sources; else a loaded
+    :class:`twin.pil.program.Program`, ELF or HEX) with a new operator from ``operator()`` for each lap (an operator
+    remembers its presses)."""
+    def run(twin: DigitalTwin, seed: int) -> LapResult:
+        if program is None:
+            return run_pil_lap(twin, None, seed=seed, limits=limits, keep_trace=False)[0]
+        return run_program_lap(twin, program, seed=seed, limits=limits, keep_trace=False,
+                               operator=operator() if operator else None)[0]
+    return run
 
 
 def points_of(grid: Sequence[dict], seeds: Sequence[int], laps: Sequence) -> list[Point]:

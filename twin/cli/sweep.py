@@ -4,12 +4,15 @@ or two parameters, every grid point raced with several noise seeds, all in one b
 from __future__ import annotations
 
 import argparse
+import math
 
 from twin.viz import recording
 from twin.cli import options as o
 from twin.cli.output import Output
 from twin.errors import TwinError
-from tuner.studies.sweep import Axis, check_axes, check_size, grid_points, points_of, sweep, write_sweep
+from tuner.studies.sweep import (Axis, check_axes, check_program_axes, check_size, firmware_lap, grid_points, points_of,
+                                 sweep, sweep_firmware, write_sweep)
+from twin.core.lap import LapLimits
 from lf_common.files import check_output_dir
 
 HELP = "sensitivity sweep: lap time, completion, cross-track error and energy against one or two parameters"
@@ -25,6 +28,11 @@ def add_parser(sub) -> None:
     o.add_seed(p, 0, "the first noise seed")
     p.add_argument("--seeds", type=o.number(1, 1000, integer=True), default=3, metavar="N", help="noise seeds per grid point")
     o.add_workers(p, "laps of the batch (threads)")
+    o.add_firmware(p, "every lap (avr or a program file: each lap runs on the emulated MCU, one after another on one "
+                   "core, about 5 s a lap; a 3pi program keeps its own gains, so control.* cannot be swept with it)")
+    p.add_argument("--lap-timeout", type=o.number(0.0, 3600.0, lo_open=True), default=60.0, metavar="SIM_S",
+                   help="a lap not done after this many simulated seconds ends as 'timeout' (a 3pi program that has "
+                   "not driven by then after power-up too)")
     p.add_argument("--cluster", metavar="auto|ray://HOST:PORT", help="run each grid point's laps as a Ray task on a "
                    "cluster (pip install -e '.[cluster]'; the generated robot on a built-in track: nodes share no "
                    "files); the laps equal a local run's")
@@ -71,22 +79,54 @@ def _sweep_on_cluster(args, twin, axes, seeds, out: Output):
     return points_of(grid, seeds, laps)
 
 
+def _sweep_on_mcu(args, twin, program, script, axes, seeds):
+    """Each lap on the emulated MCU, one after another, with a progress bar."""
+    import copy
+
+    from tqdm import tqdm
+
+    from twin.pil.board import Operator, runnable_program
+    from twin.pil import runnable_firmware
+
+    if program is None:
+        runnable_firmware(twin)
+    else:
+        runnable_program(twin, program.path)
+    operator = (lambda: copy.deepcopy(script)) if script else Operator  # a fresh operator for each lap
+    lap = firmware_lap(program, operator, LapLimits(timeout_s=args.lap_timeout))
+    bar = tqdm(total=math.prod(a.count for a in axes) * len(seeds), desc="sweep laps on the MCU", unit="lap",
+               disable=None)
+    try:
+        return sweep_firmware(twin, axes, seeds, lap, on_lap=lambda _: bar.update(1))
+    finally:
+        bar.close()
+
+
 def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     check_output_dir(args.out_dir, "sweep folder")
     recording.check_targets(args.save, args.view)
     axes = [parse_axis(a) for a in args.axes]
-    check_size(axes, args.seeds)  # from the counts alone: refused at once, before any grid or twin is built
-    twin = o.twin_from_args(args)
+    on_mcu = args.firmware != "c"
+    check_size(axes, args.seeds, firmware=on_mcu)  # from the counts alone: refused at once, before any grid or twin
+    if on_mcu and args.cluster:
+        raise TwinError("--cluster: the nodes run the twin's C laps; a sweep with --firmware runs locally")
+    program, script = o.program_from_args(args)
+    foreign = program is not None and not program.traced  # a 3pi program other than the twin's own firmware
+    if foreign:
+        check_program_axes(axes)
+    twin = o.twin_from_args(args, robot="3pi" if foreign else None)
     warning = o.gains_warning(args, twin)
     check_axes(twin, axes)
     seeds = list(range(args.seed, args.seed + args.seeds))
-    if args.cluster:
+    if on_mcu:
+        points = _sweep_on_mcu(args, twin, program, script, axes, seeds)
+    elif args.cluster:
         points = _sweep_on_cluster(args, twin, axes, seeds, out)
     else:
         points = sweep(twin, axes, seeds, nthread=args.workers)
-    meta = {"track": twin.track.name, "seeds": seeds, "base": {a: twin.space.get(a) for a in twin.space.addresses
-                                                                if a.startswith("control.")}}
+    meta = {"track": twin.track.name, "seeds": seeds, "firmware": args.firmware,
+            "base": None if foreign else {a: twin.space.get(a) for a in twin.space.addresses if a.startswith("control.")}}
     paths = write_sweep(args.out_dir, axes, points, meta)
     paths["recording"] = recording.save_charts(args.save, args.view, {"sweep": paths["png"]})
     out.document({**meta, "outputs": paths, "points": [p.row() for p in points], "gains_warning": warning})
