@@ -229,6 +229,30 @@ def test_a_sweep_runs_a_3pi_program_lap_by_lap_as_lap_does(build, tmp_path):
     assert refused.returncode == 2 and "keeps its own gains" in refused.stderr and refused.stderr.count("\n") == 1
 
 
+def test_a_design_study_races_a_3pi_program_on_each_design_as_lap_does(build, tmp_path):
+    """design --firmware PROGRAM: the designs start from the 3pi, are not tuned (the program's gains are its own),
+    and each design's lap with seed 1 is the lap `lap` runs on that design."""
+    program = hex_of(build("follower"))
+    done = cli("design", "--grid", "cad.L=0.035,0.047", "--laps", "1", "--firmware", program, "--track", "oval",
+               "--workers", "1", "--json", "--out-dir", str(tmp_path / "d"))
+    assert done.returncode == 0, done.stderr
+    import json
+
+    doc = json.loads(done.stdout)
+    assert doc["fixed"]["sensor.count"] == 5 and doc["fixed"]["motor.model"] == "pololu-3pi-30"
+    times = []
+    for d in doc["designs"]:
+        assert d["ok"] and d["gains"] == {} and d["search"].startswith("not tuned"), d
+        lap = cli("lap", "--firmware", program, "--track", "oval", "--seed", "1", "--set", f"cad.L={d['design']['cad.L']}",
+                  "--json")
+        assert lap.returncode == 0, lap.stderr
+        assert d["median_lap_time_s"] == json.loads(lap.stdout)["lap_time_s"]
+        times.append(d["median_lap_time_s"])
+    assert times[0] != times[1] and os.listdir(tmp_path / "d" / "gains") == []
+    refused = cli("design", "--grid", "control.kp=10,20", "--firmware", program, "--out-dir", str(tmp_path / "k"))
+    assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
+
+
 def test_bad_programs_and_inputs_are_one_line_and_exit_2(build, tmp_path):
     src = tmp_path / "main.c"
     src.write_text("int main(void) { for (;;) {} }\n")

@@ -222,6 +222,19 @@ def test_a_sweep_on_the_mcu_gives_each_point_the_lap_that_lap_gives(pil_ready, t
     assert big.returncode == 2 and "laps on the emulated MCU" in big.stderr and not (tmp_path / "big").exists()
 
 
+def test_a_design_study_races_its_tuned_gains_on_the_mcu(pil_ready, tmp_path):
+    """design --firmware avr: the gains tuned for a design, flashed with it, give on the MCU the lap the study
+    reports for it (seed 1)."""
+    done = cli("design", "--grid", "cad.S=0.06", "--laps", "1", "--max-iter", "1", "--firmware", "avr", "--workers",
+               "1", "--json", "--out-dir", str(tmp_path / "d"))
+    assert done.returncode == 0, done.stderr
+    (design,) = json.loads(done.stdout)["designs"]
+    gains = tmp_path / "d" / "gains" / os.listdir(tmp_path / "d" / "gains")[0]
+    lap = cli("lap", "--firmware", "avr", "--gains", str(gains), "--set", "cad.S=0.06", "--seed", "1", "--json")
+    assert lap.returncode == 0, lap.stderr
+    assert design["ok"] and design["median_lap_time_s"] == json.loads(lap.stdout)["lap_time_s"]
+
+
 def test_unrunnable_configuration_is_refused_before_the_lap(pil_ready):
     done = cli("lap", "--firmware", "avr", "--set", "sensor.count=10")
     assert done.returncode == 2 and "at most 8 sensors" in done.stderr, done.stderr

@@ -8,6 +8,10 @@ spread of those laps is the design's lap-time distribution.
 Designs run in parallel, one process per core (each tunes with one thread, so a design's result does not
 depend on how many run at once). A design that cannot be built or fails is reported with its reason and the
 others go on.
+
+With a program for the robot's MCU (``base["firmware"]``) the laps after tuning run on the emulated MCU: the twin's
+own firmware (``avr``, or its ELF) is tuned on the C loop, which runs the same C source, then raced on the MCU; any
+other 3pi program keeps the gains compiled into it, so its designs are not tuned, only raced.
 """
 
 from __future__ import annotations
@@ -32,15 +36,20 @@ from tuner.search.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelo
 from tuner.search.gradient import DescentOptions, descend
 from tuner.search.objective import LapObjective
 from tuner.search.space import SearchSpace, robot_bounds
+from tuner.studies.sweep import firmware_lap
 from twin.core.closed_loop import run_laps
+from twin.core.lap import LapLimits
 from twin.core.digital_twin import DigitalTwin
 from twin.core.identity import tuned_for
 from twin.model.motor_setup import MOTOR_MODEL, catalogue_motor, use_motor
+from twin.pil.board import Operator, load_script
+from twin.pil.program import load_program
 
 log = logging.getLogger(__name__)
 
 PARENT_POLL_S = 0.5  # how often a worker checks that the study's process is still there [s]
 DEFAULT_GRID: dict[str, tuple[float, ...]] = {"cad.L": (0.035, 0.045, 0.055), "cad.S": (0.04, 0.06, 0.08)}
+NOT_TUNED = "not tuned: a 3pi program keeps the gains compiled into it"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,22 +103,34 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
         if MOTOR_MODEL in values:  # a catalogue motor: its constants, and the firmware's full speed to match
             use_motor(twin, catalogue_motor(str(values[MOTOR_MODEL])))
         twin.model()  # builds the robot now: a design that cannot be built fails here, with its reason
+        firmware = base.get("firmware")  # None: the C loop's laps; "avr" or a program file: laps on the MCU
+        program = None if firmware in (None, "avr") else load_program(firmware)
+        foreign = program is not None and not program.traced  # a 3pi program: its gains are its own
         space = SearchSpace(twin.space, (), robot_bounds(twin))  # bounds that follow the design's motor and S
         if base.get("robust"):
             envelope, risk = Envelope.of(dict(ROBUST_AXES), list(range(ROBUST_SEEDS))), Risk(ROBUST_RISK)
         else:
             envelope, risk = None, Risk("mean")
-        objective = LapObjective(twin, space, seed=0, nthread=1, envelope=envelope, risk=risk)
-        r = descend(objective, space.to_unit(space.start(twin.space)), DescentOptions(max_iter=max_iter))
-        gains = space.assignments(objective.best.x)
-        twin.update(gains)
-        evals = [run_laps(twin, [{}], seed=s, nthread=1, keep_traces=False)[0] for s in range(1, laps + 1)]
+        if foreign:
+            gains, iterations, tuning_laps, converged, reason = {}, 0, 0, True, NOT_TUNED
+        else:
+            objective = LapObjective(twin, space, seed=0, nthread=1, envelope=envelope, risk=risk)
+            r = descend(objective, space.to_unit(space.start(twin.space)), DescentOptions(max_iter=max_iter))
+            gains = space.assignments(objective.best.x)
+            iterations, tuning_laps, converged, reason = len(r.iterations), objective.laps, r.converged, r.reason
+            twin.update(gains)
+        if firmware is None:
+            evals = [run_laps(twin, [{}], seed=s, nthread=1, keep_traces=False)[0] for s in range(1, laps + 1)]
+        else:
+            script = base.get("operator")
+            lap = firmware_lap(program, (lambda: load_script(script)) if script else Operator, LapLimits())
+            evals = [lap(twin, s) for s in range(1, laps + 1)]
         done = [e for e in evals if e.completed]
         return DesignResult(
-            design, True, None, gains, len(r.iterations), objective.laps, r.converged,
+            design, True, None, gains, iterations, tuning_laps, converged,
             tuple(float(e.lap_time_s) for e in done), len(evals) - len(done),
             float(np.mean([e.mean_cross_track_m for e in done])) if done else math.nan, time.perf_counter() - t0,
-            evidence(twin, seed=1), r.reason, tuned_for(twin))
+            {} if foreign else evidence(twin, seed=1), reason, {} if foreign else tuned_for(twin))
     except LineFollowerError as e:
         return DesignResult(design, False, str(e), {}, 0, 0, False, (), 0, math.nan, time.perf_counter() - t0)
 

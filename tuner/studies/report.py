@@ -95,7 +95,7 @@ def write_report(out_dir: str, results: Sequence[DesignResult], front: Sequence[
                     r.converged, r.search, r.tuning_iterations, r.tuning_laps] + [r.gains.get(g, "") for g in gain_names])
         os.makedirs(os.path.join(tmp, "gains"))
         for r in results:
-            if r.ok:
+            if r.ok and r.gains:  # (a 3pi program's designs are not tuned: no gains of theirs to write)
                 with open(os.path.join(tmp, "gains", f"{slug(r)}.json"), "w") as f:
                     json.dump(json_safe({"generator": GENERATOR, "gains": r.gains, "design": r.design,
                                          "track": meta["track"], "median_lap_time_s": r.median_s,

@@ -34,6 +34,9 @@ def add_parser(sub) -> None:
     p.add_argument("--laps", type=o.count_type, default=20, metavar="N", help="laps per design after tuning, one noise seed each")
     p.add_argument("--max-iter", type=o.count_type, default=30, metavar="N", help="tuning iteration cap per design")
     p.add_argument("--robust", action="store_true", help="tune each design over the robust envelope (as tune --robust)")
+    o.add_firmware(p, "each design's laps after tuning (avr or a program file: the laps run on the emulated MCU, "
+                   "about 5 s each; the twin's own firmware is tuned on the C loop, which runs the same source; a 3pi "
+                   "program keeps its own gains, so its designs are raced on the 3pi, not tuned)")
     o.add_workers(p, "designs (processes)")
     p.add_argument("--cluster", metavar="auto|ray://HOST:PORT", help="run the designs as Ray tasks on a cluster "
                    "(pip install -e '.[cluster]'; auto: the cluster this machine joined with 'ray start'); results "
@@ -43,6 +46,35 @@ def add_parser(sub) -> None:
     o.add_recording(p, "the charts")
     o.add_verbose(p, quiet=True)
     p.set_defaults(run=run)
+
+
+def _check_firmware(args: argparse.Namespace, values: dict) -> dict:
+    """What ``--firmware`` adds to the study's base (nothing for the C loop), checked on the base design before any
+    work; a 3pi program's designs start from the 3pi (the values given with --set win)."""
+    if args.firmware == "c":
+        if args.operator:
+            raise TwinError("--operator: presses buttons for a 3pi program run on the board (--firmware FILE of a "
+                            "program other than the twin's own firmware)")
+        return {}
+    from twin.core.digital_twin import DigitalTwin
+    from twin.model.motor_setup import MOTOR_MODEL
+    from twin.model.robots import THREE_PI
+    from twin.pil.board import runnable_program
+    from twin.pil import runnable_firmware
+
+    program, _ = o.program_from_args(args)  # a bad file or --operator script: one line now
+    if program is not None and not program.traced:
+        for address in (args.grid and o.parse_grid(args.grid)) or ():
+            if address.startswith("control."):
+                raise TwinError(f"--grid {address}: a 3pi program keeps its own gains")
+        values.update({**THREE_PI.values, MOTOR_MODEL: THREE_PI.motor_model, **values})
+    twin = DigitalTwin(track=args.track, track_metres_per_pixel=args.metres_per_pixel)
+    twin.update({a: v for a, v in values.items() if a not in o.CATEGORICAL})
+    if program is None:
+        runnable_firmware(twin)
+    else:
+        runnable_program(twin, program.path)
+    return {"firmware": args.firmware if program is None else program.path, "operator": args.operator}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -67,8 +99,10 @@ def run(args: argparse.Namespace) -> int:
     load_track(args.track, space.get("environment.line_width"), space.get("environment.texture_resolution"),
                args.metres_per_pixel)  # an unknown track or unreadable image: one-line error before any work
     designs = grid(params)
-    base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": {a: v if a in o.CATEGORICAL else float(v) for a, v in fixed.items()},
-            "robust": args.robust}
+    values = {a: v if a in o.CATEGORICAL else float(v) for a, v in fixed.items()}
+    firmware = _check_firmware(args, values)
+    base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": values, "robust": args.robust,
+            **firmware}
     from tqdm import tqdm
 
     t0 = time.perf_counter()
@@ -78,6 +112,8 @@ def run(args: argparse.Namespace) -> int:
         bar.set_postfix_str(f"{r.label}: {r.median_s:.3f} s" if r.ok else f"{r.label}: failed")
 
     if args.cluster:
+        if firmware:
+            raise TwinError("--cluster: the nodes get parameter values, not files; a study with --firmware runs locally")
         from tuner.studies.cluster import study_on_ray
 
         results = study_on_ray(designs, base, args.laps, args.max_iter, args.cluster, on_done=on_done)
@@ -88,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     front = pareto(results)
     trends = [trend(results, a) for a in params]
     meta = {"track": args.track, "grid": {a: list(v) for a, v in params.items()}, "fixed": base["values"],
-            "laps_per_design": args.laps, "wall_s": wall}
+            "laps_per_design": args.laps, "wall_s": wall, "firmware": args.firmware}
     paths = write_report(args.out_dir, results, front, trends, meta)
     paths["recording"] = recording.save_charts(args.save, args.view, {"lap times": paths["chart"], "Pareto": paths["pareto"]})
     out.document({**meta, "outputs": paths, "trends": trends,
@@ -106,7 +142,8 @@ def run(args: argparse.Namespace) -> int:
             if not r.converged:
                 out.say(f"{'':28s} gains not converged: the search stopped at its {r.search}; these are the best it "
                         "had found (raise --max-iter)")
-            out.say(f"{'':28s} {describe(r.evidence)}")
+            if r.evidence:  # (none for a 3pi program's designs: the twin's C loop did not drive them)
+                out.say(f"{'':28s} {describe(r.evidence)}")
         else:
             out.say(f"{r.label:28s} failed: {r.error}")
     for t in trends:

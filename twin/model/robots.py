@@ -26,14 +26,18 @@ OZ = 0.028349523125  # [kg]
 
 @dataclasses.dataclass(frozen=True)
 class NamedRobot:
-    """A robot as values at model-space addresses, its motor, and its board's battery voltage [V] (what ADC6 reads
-    through the 3pi's divider; the motors run from the supply, ``motor.supply_voltage``)."""
+    """A robot as values at model-space addresses, its motor (a name in the motor catalogue), and its board's battery
+    voltage [V] (what ADC6 reads through the 3pi's divider; the motors run from the supply, ``motor.supply_voltage``)."""
 
     name: str
     description: str
     values: dict
-    motor: Datasheet
+    motor_model: str
     battery_v: float
+
+    @property
+    def motor(self) -> Datasheet:
+        return CATALOGUE[self.motor_model]
 
 
 THREE_PI = NamedRobot(
@@ -46,7 +50,7 @@ THREE_PI = NamedRobot(
         "sensor.t_unit": SensorModel().t_unit_us * 2.2 / 10.0,  # 2.2 nF on the 3pi, 10 nF on a QTR-8RC
         "motor.supply_voltage": 9.25,
     },
-    motor=CATALOGUE["pololu-3pi-30"],
+    motor_model="pololu-3pi-30",
     battery_v=4 * 1.2,  # four AAA NiMH cells
 )
 
