@@ -51,10 +51,8 @@ def add_parser(sub) -> None:
 def _check_firmware(args: argparse.Namespace, values: dict) -> dict:
     """What ``--firmware`` adds to the study's base (nothing for the C loop), checked on the base design before any
     work; a 3pi program's designs start from the 3pi (the values given with --set win)."""
+    program, _ = o.program_from_args(args)  # a bad file, or an --operator script without a 3pi program: one line now
     if args.firmware == "c":
-        if args.operator:
-            raise TwinError("--operator: presses buttons for a 3pi program run on the board (--firmware FILE of a "
-                            "program other than the twin's own firmware)")
         return {}
     from twin.core.digital_twin import DigitalTwin
     from twin.model.motor_setup import MOTOR_MODEL
@@ -62,11 +60,7 @@ def _check_firmware(args: argparse.Namespace, values: dict) -> dict:
     from twin.pil.board import runnable_program
     from twin.pil import runnable_firmware
 
-    program, _ = o.program_from_args(args)  # a bad file or --operator script: one line now
     if program is not None and not program.traced:
-        for address in (args.grid and o.parse_grid(args.grid)) or ():
-            if address.startswith("control."):
-                raise TwinError(f"--grid {address}: a 3pi program keeps its own gains")
         values.update({**THREE_PI.values, MOTOR_MODEL: THREE_PI.motor_model, **values})
     twin = DigitalTwin(track=args.track, track_metres_per_pixel=args.metres_per_pixel)
     twin.update({a: v for a, v in values.items() if a not in o.CATEGORICAL})
