@@ -156,6 +156,22 @@ def test_notes_have_the_frequency_and_length_the_program_timed(build):
     assert texts(report)[-1] == "done"
 
 
+def test_a_screen_rewritten_without_pause_is_seen_whole_as_it_changes(build):
+    """A program that rewrites the LCD in a loop is never quiet for 5 ms: its screens are kept as each pass begins,
+    whole (never half written), at most every 0.1 s, its count rising, and the last one is the final text."""
+    lap, report = run(build("counter"), timeout_s=2.0)
+    screens = [(t, text.split("\n")) for t, text in report.lcd if text.strip()]
+    assert len(screens) >= 10, report.lcd  # ~2 s of passes
+    counts = []
+    for t, (first, second) in screens:
+        assert first.strip() == "pass" and second.strip().isdigit(), (t, first, second)
+        counts.append(int(second))
+    assert counts == sorted(counts) and len(set(counts)) == len(counts)
+    times = [t for t, _ in screens]
+    assert min(b - a for a, b in zip(times, times[1:])) >= 0.1 - 1e-6
+    assert report.lcd_final == report.lcd[-1][1] and int(report.lcd_final.split("\n")[1]) == max(counts)
+
+
 def test_garbage_on_the_lcd_lines_is_a_result_in_time(build):
     t0 = time.monotonic()
     lap, report = run(build("garbage"), timeout_s=1.5)

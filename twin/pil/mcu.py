@@ -78,6 +78,7 @@ def glue() -> ctypes.CDLL:
     lib.lf_avr_uart.restype = c_int32
     lib.lf_avr_status_of.argtypes = [c_void_p, p(McuStatus)]
     lib.lf_avr_board_status.argtypes = [c_void_p, p(BoardStatus)]
+    lib.lf_avr_lcd_flush.argtypes = [c_void_p]
     for name, kind in (("lf_avr_lcd_frames", LcdFrame), ("lf_avr_notes", Note), ("lf_avr_leds", LedEvent)):
         getattr(lib, name).argtypes = [c_void_p, p(kind), c_int32]
         getattr(lib, name).restype = c_int32
@@ -186,8 +187,11 @@ class Mcu:
             if n < cap:
                 return out
 
-    def lcd_frames(self) -> list[LcdFrame]:
-        """The LCD's screens kept since the last call (each taken when the program had been quiet)."""
+    def lcd_frames(self, flush: bool = False) -> list[LcdFrame]:
+        """The LCD's screens kept since the last call (each taken when the program had been quiet, or as a pass of a
+        screen rewritten without pause began); ``flush``: the screen as it is now too, if written since (a run's end)."""
+        if flush:
+            self.lib.lf_avr_lcd_flush(self.handle)
         return self._drain("lf_avr_lcd_frames", LcdFrame)
 
     def notes(self) -> list[Note]:

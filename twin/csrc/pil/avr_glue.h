@@ -126,8 +126,8 @@ typedef struct {
   uint8_t ddram[128], cgram[64];
   uint8_t ac, cg_ac, cg, mode8, lines2, phase, hi, inc, eshift, on, e, reading, shift;
   int32_t plugged;         /* 0: the LCD's lines are sensor lines (the twin's firmware with more than 5 sensors) */
-  uint64_t busy_until, last_write;
-  int32_t dirty, have_last;
+  uint64_t busy_until, last_write, dirty_since; /* dirty_since: the first write not yet in a kept screen */
+  int32_t dirty, have_last, rewriting; /* rewriting: the last screen was kept while the program went on writing */
   lf_lcd_frame last;
   lf_lcd_frame frames[LCD_FRAMES];
   int32_t nframes;
@@ -255,6 +255,7 @@ void lf_avr_status_of(const lf_avr *a, lf_avr_status *status);
 void lf_avr_board_status(const lf_avr *a, lf_board_status *status);
 int32_t lf_avr_uart(lf_avr *a, char *out, int32_t cap);
 int32_t lf_avr_lcd_frames(lf_avr *a, lf_lcd_frame *out, int32_t cap);
+void lf_avr_lcd_flush(lf_avr *a);
 int32_t lf_avr_notes(lf_avr *a, lf_note *out, int32_t cap);
 int32_t lf_avr_leds(lf_avr *a, lf_led_event *out, int32_t cap);
 int32_t lf_avr_layout(const lf_field **fields);

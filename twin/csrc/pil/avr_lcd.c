@@ -10,7 +10,11 @@
  * addresses wrap, so garbage on the lines gives a garbled screen, never a fault.
  *
  * What the screen shows is kept when the program has not written for LCD_QUIET_S: each rewrite of a screen (Pololu's
- * examples clear and reprint every 100 ms) gives one frame, and a frame equal to the last is not kept again. */
+ * examples clear and reprint every 100 ms) gives one frame, and a frame equal to the last is not kept again. A program
+ * that rewrites the screen without pause (a clock, a counter: `lcd_goto_xy(0, 0); print(...)` in a loop) is never
+ * quiet, so its screen is also kept when a pass begins (clear, home or an address set) after LCD_REWRITE_S of writing,
+ * as the previous pass left it, and after LCD_STALE_S of writing in any case; lf_avr_lcd_flush keeps the screen at the
+ * end of a run. */
 #include <string.h>
 
 #include <simavr/avr_ioport.h>
@@ -20,6 +24,8 @@
 #include "avr_glue.h"
 
 #define LCD_QUIET_S 0.005
+#define LCD_REWRITE_S 0.1 /* a screen rewritten without pause is kept at most this often, at the start of a pass */
+#define LCD_STALE_S 1.0   /* … and, written without pause nor new pass, at least this often */
 #define LCD_SHORT_S 37e-6 /* execution time of most instructions */
 #define LCD_LONG_S 1.52e-3 /* clear display, return home */
 
@@ -37,6 +43,39 @@ static uint8_t next_address(uint8_t ac, int inc, int lines2) {
   if (!lines2) return (uint8_t)(inc ? (ac + 1) % 80 : (ac + 79) % 80);
   if (inc) return ac == 0x27 ? 0x40 : ac == 0x67 ? 0x00 : (uint8_t)((ac + 1) & 0x7f);
   return ac == 0x40 ? 0x27 : ac == 0x00 ? 0x67 : (uint8_t)((ac - 1) & 0x7f);
+}
+
+static void screen(const lf_board *b, lf_lcd_frame *f) {
+  int line, col;
+  memset(f, 0, sizeof *f);
+  for (line = 0; line < 2; line++)
+    for (col = 0; col < 8; col++) {
+      int at = b->lines2 ? (line ? 0x40 : 0) + (col + b->shift) % 40 : line ? -1 : (col + b->shift) % 80;
+      f->text[line * 8 + col] = at < 0 ? ' ' : b->ddram[at];
+    }
+  memcpy(f->cgram, b->cgram, sizeof f->cgram);
+  f->on = b->on;
+}
+
+/* Keep what the screen shows now (as it stood at `cycle`), unless it equals the last screen kept; `rewriting`: kept
+ * while the program goes on writing (at a pass's start, or stale), not after a pause. */
+static void keep_screen(lf_avr *a, uint64_t cycle, int rewriting) {
+  lf_board *b = &a->board;
+  lf_lcd_frame f;
+  b->dirty = 0, b->rewriting = rewriting;
+  screen(b, &f);
+  f.cycle = cycle;
+  if (b->have_last && !memcmp(f.text, b->last.text, sizeof f.text) && !memcmp(f.cgram, b->last.cgram, sizeof f.cgram) &&
+      f.on == b->last.on)
+    return;
+  b->last = f, b->have_last = 1;
+  if (b->nframes < LCD_FRAMES) b->frames[b->nframes++] = f;
+  else b->lost.frames_lost++;
+}
+
+/* An instruction that starts a new pass over the screen (clear, home, set DDRAM address). */
+static int starts_pass(uint8_t byte) {
+  return (byte & 0x80) || byte == 0x01 || (byte & 0xfe) == 0x02;
 }
 
 static void instruction(lf_avr *a, uint8_t byte) {
@@ -92,8 +131,11 @@ static void latch(lf_avr *a) {
   } else {
     byte = (uint8_t)(b->hi << 4 | nibble), b->phase = 0;
   }
+  if (!rs && b->dirty && starts_pass(byte) && a->avr->cycle - b->dirty_since >= cycles_of(a, LCD_REWRITE_S))
+    keep_screen(a, b->last_write, 1); /* the previous pass, whole: a screen rewritten without pause */
   if (rs) data(a, byte);
   else instruction(a, byte);
+  if (!b->dirty) b->dirty_since = a->avr->cycle;
   b->last_write = a->avr->cycle;
   b->dirty = 1;
 }
@@ -138,31 +180,18 @@ void pil_connect_lcd(lf_avr *a) {
   avr_irq_register_notify(avr_io_getirq(a->avr, AVR_IOCTL_IOPORT_GETIRQ('D'), IOPORT_IRQ_REG_PORT), on_port_d, a);
 }
 
-static void screen(const lf_board *b, lf_lcd_frame *f) {
-  int line, col;
-  memset(f, 0, sizeof *f);
-  for (line = 0; line < 2; line++)
-    for (col = 0; col < 8; col++) {
-      int at = b->lines2 ? (line ? 0x40 : 0) + (col + b->shift) % 40 : line ? -1 : (col + b->shift) % 80;
-      f->text[line * 8 + col] = at < 0 ? ' ' : b->ddram[at];
-    }
-  memcpy(f->cgram, b->cgram, sizeof f->cgram);
-  f->on = b->on;
-}
-
 void pil_lcd_step(lf_avr *a) {
   lf_board *b = &a->board;
-  lf_lcd_frame f;
-  if (!b->plugged || !b->dirty || a->avr->cycle - b->last_write < cycles_of(a, LCD_QUIET_S)) return;
-  b->dirty = 0;
-  screen(b, &f);
-  f.cycle = b->last_write;
-  if (b->have_last && !memcmp(f.text, b->last.text, sizeof f.text) && !memcmp(f.cgram, b->last.cgram, sizeof f.cgram) &&
-      f.on == b->last.on)
-    return;
-  b->last = f, b->have_last = 1;
-  if (b->nframes < LCD_FRAMES) b->frames[b->nframes++] = f;
-  else b->lost.frames_lost++;
+  if (!b->plugged || !b->dirty) return;
+  if (a->avr->cycle - b->last_write >= cycles_of(a, LCD_QUIET_S)) keep_screen(a, b->last_write, 0);
+  else if (a->avr->cycle - b->dirty_since >= cycles_of(a, LCD_STALE_S)) keep_screen(a, b->last_write, 1);
+}
+
+/* The end of a run: keep the screen as it is now if the program wrote since the last screen kept, unless it is
+ * rewriting the screen without pause (then the last whole pass, already kept, is what it showed; this one may be
+ * half written). */
+void lf_avr_lcd_flush(lf_avr *a) {
+  if (a->board.plugged && a->board.dirty && !a->board.rewriting) keep_screen(a, a->board.last_write, 0);
 }
 
 /* Hand Python the screens kept since the last call (at most cap). */

@@ -178,6 +178,7 @@ def run_board_lap(twin: DigitalTwin, program: Program, seed: int = 0, limits: La
             if why := _over_time(clock, now, limits):
                 clock.fail(Outcome.TIMEOUT, why, now, float(sim.energy_j))
         status, board = mcu.status(), mcu.board_status()
+        log.take(mcu.lcd_frames(flush=True), mcu.notes(), mcu.leds(), board.used)  # the screen as the run ends
         log.close(board.note, float(data.time))
     result = clock.judge.result(BOARD_SENSORS, [], [], lap.values)
     report = BoardReport.of(
