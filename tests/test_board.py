@@ -269,6 +269,36 @@ def test_a_design_study_races_a_3pi_program_on_each_design_as_lap_does(build, tm
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
 
 
+def test_emulate_paces_a_program_that_sends_nothing_at_its_speed(build):
+    """emulate --firmware PROGRAM streams at --speed times real time from power-up: a program that sends no line
+    (the gate's LAP line is all there is) still takes the lap's simulated time / speed to report it, not just the
+    time its simulation took."""
+    import json
+    import socket
+    import time
+
+    emu = subprocess.Popen([*RUN_CLI, "emulate", "--firmware", hex_of(build("follower")), "--track", "oval", "--laps",
+                            "1", "--speed", "2", "--tcp", "0", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           text=True)
+    try:
+        host, port = json.loads(emu.stdout.readline())["link"].split("//")[-1].rsplit(":", 1)
+        t0 = time.monotonic()
+        received = b""
+        with socket.create_connection((host, int(port)), timeout=120) as s:
+            while b",LAP," not in received and b",FAIL," not in received:
+                chunk = s.recv(4096)
+                assert chunk, received
+                received += chunk
+        waited = time.monotonic() - t0
+        assert emu.wait(timeout=60) == 0
+    finally:
+        emu.kill()
+    gate = received.decode().strip().splitlines()[-1]  # $LFE,<ms since power-up>,LAP,<lap ms>*checksum
+    simulated_s = int(gate.split(",")[1]) / 1000
+    assert ",LAP," in gate and simulated_s > 8.0  # calibration, presses and a lap: several seconds to pace
+    assert simulated_s / 2 * 0.95 <= waited <= simulated_s / 2 + 5.0, (waited, gate)
+
+
 def test_bad_programs_and_inputs_are_one_line_and_exit_2(build, tmp_path):
     src = tmp_path / "main.c"
     src.write_text("int main(void) { for (;;) {} }\n")

@@ -212,19 +212,18 @@ def _lap_end(line: str) -> bool:
 
 def stream(lines: Iterator[tuple[float, str]], write: Callable[[bytes], None], speed: float,
            echo: Callable[[str], None] | None = None, commands: CommandPort | None = None) -> None:
-    """Write lines when their time comes: simulated time / speed after the first line; with ``commands``, answer
-    the twin's commands between lines (and in lockstep, wait for one after each lap)."""
+    """Write lines when their time comes: simulated time / speed from the call (the robot's power-up is time 0, so
+    a program that sends nothing for a lap still takes the lap's time to report it); with ``commands``, answer the
+    twin's commands between lines (and in lockstep, wait for one after each lap)."""
 
     def send(line: str) -> None:
         write(line.encode("ascii"))
         if echo:
             echo(line)
 
-    start = None
+    start = time.monotonic()  # power-up (the first lap is simulated when the loop asks for its first line)
     for t, line in lines:
         now = time.monotonic()
-        if start is None:
-            start = now - t / speed
         delay = start + t / speed - now
         if delay > 0:
             if commands is not None:
