@@ -172,6 +172,17 @@ def test_a_screen_rewritten_without_pause_is_seen_whole_as_it_changes(build):
     assert report.lcd_final == report.lcd[-1][1] and int(report.lcd_final.split("\n")[1]) == max(counts)
 
 
+def test_timer1_with_top_icr1_set_after_its_clock_counts_to_the_new_top(build):
+    """Timer1 in fast PWM with TOP = ICR1, its clock started before ICR1 is written (OrangutanServos' order): clk/8
+    and ICR1 = 9999 match OCR1A once a period, 20 MHz / (8 * 10000) = 250 Hz (datasheet 15.9.3), so 400 ms count 100 (± 1), and the
+    count is on the screen about 0.4 s after power-up (simavr alone keeps TOP 0: a match every few cycles, a crawl)."""
+    lap, report = run(build("timer1"), timeout_s=2.0)
+    shown = [(t, text.split("\n")) for t, text in report.lcd if text.startswith("matches")]
+    assert shown, report.lcd
+    t, (_, count) = shown[0]
+    assert abs(int(count) - 100) <= 1 and 0.4 < t < 0.6, (t, count)
+
+
 def test_garbage_on_the_lcd_lines_is_a_result_in_time(build):
     t0 = time.monotonic()
     lap, report = run(build("garbage"), timeout_s=1.5)

@@ -71,6 +71,23 @@ static void before_tccr(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) 
   }
 }
 
+/* simavr 1.6 reads ICR1 only when Timer1 is (re)configured (a TCCR1A/B write that changes its clock or mode), so a
+ * program that starts Timer1 with TOP = ICR1 and sets ICR1 after (OrangutanServos: TCCR1B first, then ICR1 = 25000)
+ * counts to the old TOP, 0, for ever: an overflow every few cycles, the program crawling under its interrupts. After an
+ * ICR1 write in a mode with TOP = ICR1 the glue stops and restarts the clock through TCCR1B's own handlers, so the
+ * new TOP counts from then on. (ICR1L: the low byte completes a 16-bit write, ATmega328P datasheet 15.3.) */
+static void after_icr1(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+  lf_avr *a = (lf_avr *)param;
+  uint8_t rb = reg(a, TCCR1B);
+  int wgm = (reg(a, TCCR1A) & 3) | ((rb >> 1) & 0xc);
+  avr_io_addr_t io = AVR_DATA_TO_IO(TCCR1B);
+  (void)addr;
+  (void)v;
+  if (!(rb & 7) || (wgm != 8 && wgm != 10 && wgm != 12 && wgm != 14)) return;
+  avr->io[io].w.c(avr, TCCR1B, (uint8_t)(rb & ~7u), avr->io[io].w.param);
+  avr->io[io].w.c(avr, TCCR1B, rb, avr->io[io].w.param);
+}
+
 static void fix_timers(lf_avr *a) {
   static const avr_timer_wgm_t fast8 = AVR_TIMER_WGM_FASTPWM8(), fast9 = AVR_TIMER_WGM_FASTPWM9(),
                                fast10 = AVR_TIMER_WGM_FASTPWM10(), ocr = AVR_TIMER_WGM_OCPWM(),
@@ -91,6 +108,7 @@ static void fix_timers(lf_avr *a) {
     pil_watch_write(a, tccr_a[k], before_tccr, 1);
     pil_watch_write(a, tccr_b[k], before_tccr, 1);
   }
+  pil_watch_write(a, ICR1L, after_icr1, 0);
 }
 
 /* A program's flash (and EEPROM) image onto a fresh MCU. NULL with the reason in err if simavr cannot. Python has
