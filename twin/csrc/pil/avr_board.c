@@ -163,7 +163,7 @@ static void on_peripheral_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void 
       pil_led_update(a);
       break;
     case ACSR: used = v & 0x08 ? LF_USED_COMPARATOR : 0; break;
-    case TIMSK1: used = v & 0x20 ? LF_USED_CAPTURE : 0; break;
+    case TIMSK1: used = (v & 0x20) && !pil_timer1_top_is_icr(a) ? LF_USED_CAPTURE : 0; break; /* (at TOP: modelled) */
     case EIMSK: used = v & 0x03 ? LF_USED_INT01 : 0; break;
     default: break;
   }

@@ -51,7 +51,7 @@ enum {
   LF_USED_ADC_PIN = 1 << 2,      /* a conversion of ADC0..5: those pins carry the sensors and the emitter control */
   LF_USED_UART_RX = 1 << 3,      /* UCSR0B's RXEN0: nothing is connected to PD0 */
   LF_USED_COMPARATOR = 1 << 4,   /* ACSR's ACIE: the analog comparator's inputs are not modelled */
-  LF_USED_CAPTURE = 1 << 5,      /* TIMSK1's ICIE1: Timer1's input capture (PB0, the LCD's R/W line; or at TOP = ICR1) */
+  LF_USED_CAPTURE = 1 << 5,      /* TIMSK1's ICIE1 outside the modes with TOP = ICR1: input capture on ICP1 (PB0) */
   LF_USED_INT01 = 1 << 6,        /* EIMSK's INT0/INT1 on PD2/PD3: their level triggering is not polled (avr_mcu.c) */
   LF_USED_BUZZER_GPIO = 1 << 7   /* PB2 toggled by hand, not by Timer1: the buzzer's sound is not captured */
 };
@@ -256,6 +256,7 @@ void lf_avr_board_status(const lf_avr *a, lf_board_status *status);
 int32_t lf_avr_uart(lf_avr *a, char *out, int32_t cap);
 int32_t lf_avr_lcd_frames(lf_avr *a, lf_lcd_frame *out, int32_t cap);
 void lf_avr_lcd_flush(lf_avr *a);
+int pil_timer1_top_is_icr(lf_avr *a); /* Timer1's WGM (8, 10, 14) when it runs with TOP = ICR1 and a capture flag at TOP, else 0 */
 int32_t lf_avr_notes(lf_avr *a, lf_note *out, int32_t cap);
 int32_t lf_avr_leds(lf_avr *a, lf_led_event *out, int32_t cap);
 int32_t lf_avr_layout(const lf_field **fields);

@@ -84,8 +84,45 @@ static void after_icr1(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
   (void)addr;
   (void)v;
   if (!(rb & 7) || (wgm != 8 && wgm != 10 && wgm != 12 && wgm != 14)) return;
-  avr->io[io].w.c(avr, TCCR1B, (uint8_t)(rb & ~7u), avr->io[io].w.param);
+  avr->io[io].w.c(avr, TCCR1B, (uint8_t)(rb & ~7u), avr->io[io].w.param); /* (the capture follows: after_tccr1) */
   avr->io[io].w.c(avr, TCCR1B, rb, avr->io[io].w.param);
+}
+
+/* Timer1's input-capture flag at TOP, in the modes with TOP = ICR1 (datasheet 15.9.3-15.9.5: "the ICF1 flag is set
+ * when TCNT1 reaches TOP"): simavr 1.6 raises it only on its external-clock path, so OrangutanServos' TIMER1_CAPT
+ * never ran. The glue raises it once a period at TOP: with the overflow in fast PWM (WGM 14), half a period after it
+ * in phase-correct and phase- and frequency-correct PWM (WGM 8, 10: simavr's overflow is BOTTOM there). Kept in step
+ * with simavr's own period (tov_base, tov_cycles) whenever Timer1 is reconfigured. */
+int pil_timer1_top_is_icr(lf_avr *a) {
+  uint8_t rb = reg(a, TCCR1B);
+  int wgm = (reg(a, TCCR1A) & 3) | ((rb >> 1) & 0xc);
+  return (rb & 7) && (wgm == 8 || wgm == 10 || wgm == 14) ? wgm : 0;
+}
+
+static avr_cycle_count_t capture_at_top(avr_t *avr, avr_cycle_count_t when, void *param) {
+  avr_timer_t *t = (avr_timer_t *)param;
+  avr_raise_interrupt(avr, &t->icr);
+  return t->tov_cycles > 1 ? when + t->tov_cycles : 0;
+}
+
+static void sync_capture(lf_avr *a) {
+  avr_timer_t *t = a->timers[1];
+  int wgm;
+  avr_cycle_count_t next;
+  if (!t) return;
+  avr_cycle_timer_cancel(a->avr, capture_at_top, t);
+  wgm = pil_timer1_top_is_icr(a);
+  if (!wgm || t->tov_cycles <= 1) return;
+  next = t->tov_base + (wgm == 14 ? 0 : t->tov_cycles / 2);
+  while (next <= a->avr->cycle) next += t->tov_cycles;
+  avr_cycle_timer_register(a->avr, next - a->avr->cycle, capture_at_top, t);
+}
+
+static void after_tccr1(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+  (void)avr;
+  (void)addr;
+  (void)v;
+  sync_capture((lf_avr *)param);
 }
 
 static void fix_timers(lf_avr *a) {
@@ -109,6 +146,8 @@ static void fix_timers(lf_avr *a) {
     pil_watch_write(a, tccr_b[k], before_tccr, 1);
   }
   pil_watch_write(a, ICR1L, after_icr1, 0);
+  pil_watch_write(a, TCCR1A, after_tccr1, 0);
+  pil_watch_write(a, TCCR1B, after_tccr1, 0);
 }
 
 /* A program's flash (and EEPROM) image onto a fresh MCU. NULL with the reason in err if simavr cannot. Python has

@@ -27,8 +27,8 @@ UNMODELLED = (
     (1 << 2, "ADC0-5: those pins carry the reflectance sensors and the emitter control; their voltages are not modelled"),
     (1 << 3, "UART receive: nothing is connected to RX (PD0); no byte arrives"),
     (1 << 4, "analog comparator interrupt: the comparator's inputs are not modelled"),
-    (1 << 5, "Timer1's input-capture interrupt (TIMER1_CAPT) never fires: neither its pin ICP1 (PB0, the LCD's R/W "
-             "line) nor its flag at TOP = ICR1 is modelled, so servo pulses timed by it (OrangutanServos) are not made"),
+    (1 << 5, "Timer1 input capture on ICP1 (PB0, the LCD's R/W line): not modelled, TIMER1_CAPT comes only at TOP in "
+             "the modes with TOP = ICR1"),
     (1 << 6, "INT0/INT1 (PD2, PD3): low-level triggering is not repeated while the line stays low"),
     (1 << 7, "buzzer toggled by hand on PB2 (not by Timer1): its sound is not captured"),
 )
