@@ -48,3 +48,10 @@ def test_an_input_that_is_no_regular_file_is_named_with_one_message(files, reade
 def test_a_mesh_that_is_a_fifo_is_named(files, capsys):
     check_bad_input("lap --robot {fifo_mesh.urdf}", "mesh {wheel.stl}: is a FIFO, not a regular file", files, capsys,
                     limit_s=20)
+
+
+def test_a_track_named_without_a_folder_is_read_as_the_file_it_names(files, capsys, monkeypatch):
+    """A FIFO in the working folder given by its bare name is the file, not an unknown built-in track."""
+    monkeypatch.chdir(files.fill("{dir}"))
+    line = check_bad_input("lap --track fifo", "fifo: is a FIFO, not a regular file", files, capsys, limit_s=20)
+    assert line == "error: fifo: is a FIFO, not a regular file", line

@@ -23,18 +23,21 @@ def load_track(
     """A track and its floor texture.
 
     Args:
-      name_or_path: a built-in track name, or a path to an image (``*.png``).
+      name_or_path: a built-in track name, or a path to an image (``*.png``; any other name of an existing file is
+        read, and checked, as one).
       line_width: line width in [m] for built-in tracks (an image's is measured).
       texture_resolution: pixel pitch in [m] for rasterising built-in tracks.
       metres_per_pixel: an image's scale in [m], when it has no DPI metadata.
     """
-    if name_or_path.lower().endswith((".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")) or os.sep in name_or_path:
+    builtin = name_or_path == "maze" or name_or_path in track_mod.BUILTIN_SEGMENTS
+    if (name_or_path.lower().endswith((".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")) or os.sep in name_or_path
+            or (not builtin and os.path.lexists(name_or_path))):
         track, texture = track_from_png(name_or_path, metres_per_pixel=metres_per_pixel)
         return track, _padded(texture, margin_m=0.3)
     if name_or_path == "maze":
         maze = maze_track(line_width)
         return maze, maze.rasterise(metres_per_pixel=texture_resolution)
-    if name_or_path not in track_mod.BUILTIN_SEGMENTS:
+    if not builtin:
         raise TwinError(
             f"track {name_or_path!r}: unknown track; built-in tracks are {', '.join(track_mod.BUILTIN_SEGMENTS)}, "
             "maze, or give a PNG file"
