@@ -130,6 +130,8 @@ def test_diagnosis_ranks_a_tired_battery_first_from_the_lap_time():
     report = diagnose(twin, measured, seed=0)
     best = report.candidates[0]
     assert best.address == "motor.supply_voltage" and best.value == pytest.approx(5.0, rel=0.05) and best.plausible
+    grip = next(c for c in report.candidates if c.address == "motion.mu")  # (the default gains never slip)
+    assert not grip.explained and "align --param motion.mu --bounds motion.mu=LO,HI" in grip.message  # no --bounds here
 
 
 def test_diagnosis_ranks_dirty_tyres_first_from_the_traces(robust_twin, tmp_path):

@@ -141,7 +141,8 @@ def diagnose_one(twin: DigitalTwin, measured: float, address: str, tel: Telemetr
     if nominal <= 0:
         raise TunerError(f"diagnosis {address}: its value {nominal:g} is not positive, so it has no ratio to search")
     bounds = (max(p.lower, nominal * cause.search[0]), min(p.upper, nominal * cause.search[1]))
-    r: LapTimeAlignment = align_lap_time(twin, measured, address, bounds=bounds, seed=seed, nthread=nthread)
+    r: LapTimeAlignment = align_lap_time(twin, measured, address, bounds=bounds, seed=seed, nthread=nthread,
+                                         bounds_flag=f"align --param {address} --bounds")  # (diagnose has no --bounds)
     rng = (nominal * cause.plausible[0], nominal * cause.plausible[1])
     if not r.explained or r.value is None:
         return Diagnosis(address, cause.what, nominal, None, False, None, None, False, rng, r.simulated_lap_time_s,

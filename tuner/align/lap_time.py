@@ -242,10 +242,12 @@ def align_lap_time(
     max_iter: int = 20,
     nthread: int = 0,
     limits: LapLimits = LapLimits(),
+    bounds_flag: str = "--bounds",
 ) -> LapTimeAlignment:
     """Align one parameter to a measured lap time (see the module docstring). A parameter that rebuilds the robot
     (``cad.*``) is searched too, one build per value, so it costs far more wall time. ``limits``: when a lap fails
-    (a timeout near twice the measurement spares the scan laps that crawl to the default 60 s)."""
+    (a timeout near twice the measurement spares the scan laps that crawl to the default 60 s). ``bounds_flag``: how
+    the caller's user searches another range (the messages name it)."""
     if not (isinstance(measured_lap_time_s, (int, float)) and math.isfinite(measured_lap_time_s) and measured_lap_time_s > 0):
         raise TunerError(f"measured lap time: must be a finite number of seconds > 0, got {measured_lap_time_s!r}")
     p = twin.space.parameter(address)
@@ -275,9 +277,9 @@ def align_lap_time(
         points = sorted(points + [(float(v), t) for v, t in zip(values, times)])
         values = _refine(points, m, TOLERANCE)
     done = [(v, t) for v, t in points if t is not None]
-    widen = (f"search another range with --bounds {address}=LO,HI" if given else
+    widen = (f"search another range with {bounds_flag} {address}=LO,HI" if given else
              f"the default range is {address}'s {'documented physical' if address in PHYSICAL_RANGE else 'nearby'} "
-             f"range: search another with --bounds {address}=LO,HI")
+             f"range: search another with {bounds_flag} {address}=LO,HI")
     if not done:
         return _result(address, [], m, 0, trace, (), current, (lo, hi),
                        f"no lap completes for {address} in [{lo:g}, {hi:g}] with these gains; {widen}")
