@@ -246,6 +246,16 @@ def test_same_seed_gives_bit_identical_indices_for_any_worker_count(tmp_path, mo
     assert mine == [{k: i[k] for k in mine[0]} for i in doc["influences"]]
 
 
+def test_a_default_analysis_with_fewer_samples_is_not_kept_for_diagnose_and_align(tmp_path, monkeypatch, capsys):
+    """Only the default analysis (or a larger one) steers diagnose and align: a quick look with --samples 8 has
+    intervals too wide for that, so nothing is written to the cache."""
+    monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))
+    assert main(["graph", "--learn", "--track", "circle", "--samples", "8", "--json", "-q", "--out-dir",
+                 str(tmp_path / "out")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["stored"] is None and not os.path.exists(tmp_path / "cache" / "learned")
+
+
 @pytest.mark.parametrize("args,match", [
     (["--param", "motion.mu"], "--param: goes with --learn"),
     (["--learn", "--samples", "100"], "power of two"),

@@ -92,7 +92,10 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
     files["recording"] = recording.save_charts(args.save, args.view, {"learned graph": files["graph_png"],
                                                                       "Sobol' indices": files["indices_png"]})
     stored, why = None, "a chosen --param set is not kept for diagnose and align (only the default analysis is)"
-    if factors is None:
+    if factors is None and samples < SAMPLES:  # (its intervals are too wide to steer diagnose and align)
+        why = (f"an analysis with fewer --samples than the default {SAMPLES} is not kept for diagnose and align (only "
+               "the default analysis, or a larger one, is)")
+    elif factors is None:
         try:
             stored, why = store(twin, analysis), "kept for diagnose and align"
         except LineFollowerError as e:
