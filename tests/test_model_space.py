@@ -150,3 +150,18 @@ def test_build_cli_builds_the_world_with_settings(tmp_path):
 def test_build_cli_unknown_track_is_exit_2():
     r = run_cli("build", "--track", "nurburgring")
     assert r.returncode == 2 and "unknown track" in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_a_ratio_out_of_range_is_said_without_a_stray_unit_and_grid_examples_are_in_range():
+    """A dimensionless parameter's unit is "-": messages give its value alone, never "got -1 -"; a grid's example
+    values lie inside the parameter's range."""
+    from twin.cli.options import parse_grid
+
+    space = default_space()
+    with pytest.raises(TwinError, match=r"motion\.mu: must be > 0, got -1$"):
+        space.parameter("motion.mu").check("motion.mu", -1)
+    with pytest.raises(TwinError) as e:
+        parse_grid(["cad.L=abc"])
+    example = str(e.value).rsplit("cad.L=", 1)[1]
+    p = space.parameter("cad.L")
+    assert all(p.lower <= float(v) <= p.upper for v in example.split(",")), str(e.value)

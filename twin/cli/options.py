@@ -22,6 +22,7 @@ from twin.errors import TwinError
 from twin.model.motor_setup import MOTOR_MODEL, catalogue_motor, motor_for_robot, use_motor
 from twin.core.identity import mismatch
 from twin.model.parameter_files import load_gains, load_values, tuned_for_record
+from twin.model.partial_models import default_space
 from twin.model.robots import ROBOTS, named_robot, use_robot
 
 MAX_SEED = 2**64 - 1
@@ -286,6 +287,15 @@ def parse_bounds(items: Sequence[str] | None, addresses: Sequence[str] | None = 
     return out
 
 
+def _example(address: str) -> str:
+    """Two values inside ``address``'s range, for a message's example (0.6,0.9 for an unknown address)."""
+    try:
+        p = default_space().parameter(address)
+    except TwinError:
+        return "0.6,0.9"
+    return ",".join(f"{p.lower + (p.upper - p.lower) * f:.3g}" for f in (1 / 3, 2 / 3))
+
+
 def parse_grid(items: Sequence[str] | None, flag: str = "--grid") -> dict[str, tuple]:
     """``["cad.L=0.035,0.045"]`` → {"cad.L": (0.035, 0.045)}; a categorical address (``motor.model``) takes names."""
     out: dict[str, tuple] = {}
@@ -301,7 +311,7 @@ def parse_grid(items: Sequence[str] | None, flag: str = "--grid") -> dict[str, t
         try:
             values = tuple(float(v) for v in str(text).split(","))
         except ValueError:
-            raise TwinError(f"{flag} {address}={text}: expected comma-separated numbers, e.g. {address}=0.6,0.9") from None
+            raise TwinError(f"{flag} {address}={text}: expected comma-separated numbers, e.g. {address}={_example(address)}") from None
         if not all(math.isfinite(v) for v in values):
             raise TwinError(f"{flag} {address}={text}: values must be finite")
         if len(set(values)) != len(values):

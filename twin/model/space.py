@@ -70,10 +70,11 @@ class Parameter:
             raise TwinError(f"{address}: not a number: {value!r}") from None
         if not math.isfinite(v):
             raise TwinError(f"{address}: must be finite, got {value!r}")
+        unit = "" if self.unit in ("", "-") else f" {self.unit}"  # (a ratio's unit "-" reads as a stray dash)
         if self.strictly_positive and v <= 0:
-            raise TwinError(f"{address}: must be > 0, got {v:g} {self.unit}")
+            raise TwinError(f"{address}: must be > 0, got {v:g}{unit}")
         if not (self.lower <= v <= self.upper):
-            raise TwinError(f"{address}: {v:g} {self.unit} is outside [{self.lower:g}, {self.upper:g}]")
+            raise TwinError(f"{address}: {v:g}{unit} is outside [{self.lower:g}, {self.upper:g}]")
         if self.integer and v != round(v):
             raise TwinError(f"{address}: must be a whole number, got {v:g}")
         return v
