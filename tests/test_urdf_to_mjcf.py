@@ -1,6 +1,7 @@
 """URDF → MJCF: the generated robot and a third-party-style URDF, save/reload, and bad input."""
 
 import math
+import re
 import os
 import subprocess
 import sys
@@ -170,3 +171,22 @@ def test_joint_dynamics_spin_a_free_wheel_down_as_the_closed_form_says(tmp_path,
         t_stop = w0 * inertia / f
     exact = np.where(t < t_stop, exact, 0.0)
     np.testing.assert_allclose(w, exact, rtol=0, atol=1e-3 * w0)
+
+
+def test_a_calibration_braked_by_the_wheel_joints_dynamics_names_them(tmp_path):
+    """Wheel joints damped at 0.01 N·m·s/rad (plus 0.001 N·m friction loss) take 0.01 × ω + 0.001 N·m a wheel at the
+    calibration turn's planned wheel speed ω = cal_duty × full_speed, more than the motor's stall torque: the lap fails
+    its calibration and the reason names the joints' <dynamics> with that torque; without them the robot laps."""
+    from twin.core.closed_loop import run_laps
+    from twin.core.digital_twin import DigitalTwin
+
+    damped = os.path.join(os.path.dirname(__file__), "damped_wheels.urdf")
+    free = tmp_path / "free.urdf"
+    free.write_text(re.sub(r"\s*<dynamics[^>]*/>", "", open(damped).read()))
+    config = RobotConfig(sensor_mount=("base_link", (0.04, 0.0, -0.008)))
+    twin = DigitalTwin(track="oval", robot_urdf=damped, robot_config=config)
+    lap = run_laps(twin, [{}], keep_traces=False)[0]
+    omega = twin.space.get("control.cal_duty") * twin.space.get("control.full_speed")
+    assert not lap.completed and lap.failure == "calibration", lap.detail
+    assert f"take {0.01 * omega + 0.001:.3g} N·m a wheel" in lap.detail and "<dynamics>" in lap.detail, lap.detail
+    assert run_laps(DigitalTwin(track="oval", robot_urdf=str(free), robot_config=config), [{}], keep_traces=False)[0].completed

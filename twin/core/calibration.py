@@ -41,8 +41,26 @@ def range_too_small(twin, params, sensor, cal_min_us: Sequence[float], cal_max_u
     if np.min(spans) >= limits.min_calibration_range_us:
         return None
     bad = int(np.argmin(spans))
-    return (f"sensor {bad} spans only {spans[bad]} µs after the calibration turn; likely "
+    seen = (f"spans only {spans[bad]:g} µs" if spans[bad] > 0 else
+            "has no range at all (its calibrated maximum never rose above its minimum)")
+    return (f"sensor {bad} {seen} after the calibration turn; likely "
             f"{calibration_cause(twin, params, sensor, limits.min_calibration_range_us)}")
+
+
+def wheel_braking(twin, wheel_speed_radps: float) -> str:
+    """A clause on what the description's own wheel joints take from the motors at ``wheel_speed_radps`` [rad/s]:
+    their damping (τ = d·ω) and friction loss [N·m] (URDF <dynamics>, mjcf.urdf_parse), or "" when they take
+    nothing."""
+    model = twin.model()
+    dofs = [model.jnt_dofadr[model.joint(j).id] for j in twin.info.wheel_joints]
+    damping = max(float(model.dof_damping[d]) for d in dofs)
+    friction = max(float(model.dof_frictionloss[d]) for d in dofs)
+    if damping <= 0 and friction <= 0:
+        return ""
+    stall = twin.motor().stall_torque_wheel(twin.physics().supply_voltage)
+    return (f"; the wheel joints' own damping {damping:g} N·m·s/rad and friction loss {friction:g} N·m take "
+            f"{damping * wheel_speed_radps + friction:.3g} N·m a wheel at that speed, against the motor's {stall:.3g} "
+            "N·m stall torque at the wheel (the description's <dynamics>: check their units and size)")
 
 
 def calibration_cause(twin, params, sensor, min_span_us: float) -> str:
@@ -69,4 +87,5 @@ def calibration_cause(twin, params, sensor, min_span_us: float) -> str:
     return (f"turn fell short of its plan: it is timed for wheels at control.cal_duty {params.cal_duty:g} × "
             f"control.full_speed {params.wheel_speed_max:.3g} rad/s, {quarter_s:.2g} s a quarter sweep, which these "
             "motors do not reach with this robot (too weak, or too slow to get up to speed in so short a sweep); "
-            "raise control.cal_sweep or control.cal_duty, or choose a stronger motor (--motor, --set motor.*)")
+            "raise control.cal_sweep or control.cal_duty, or choose a stronger motor (--motor, --set motor.*)"
+            + wheel_braking(twin, params.cal_duty * params.wheel_speed_max))
