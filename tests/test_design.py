@@ -96,6 +96,8 @@ def test_designs_run_in_parallel_processes_with_the_same_results():
     (["--grid", "cad.L=1,2"], "outside"),  # ran, every design failed, exit 0
     (["--laps", "0"], "outside"),
     (["--track", "nowhere"], "unknown track"),
+    (["--track", "maze"], "no maze strategy"),  # ran, every design failed, exit 0
+    (["--firmware", "avr", "--track", "maze"], "no maze strategy"),
 ])
 def test_design_bad_input_is_one_line_and_exit_2(args, needle, capsys, tmp_path):
     assert main(["design", *args, "--out-dir", str(tmp_path / "x"), "-q"]) == 2

@@ -9,6 +9,7 @@ from lf_common.files import check_output_dir
 from twin.viz import recording
 from twin.cli import options as o
 from twin.cli.output import Output
+from twin.core.maze import refuse_maze
 from twin.model.environment import load_track
 from twin.errors import TwinError
 from twin.model.partial_models import default_space
@@ -48,19 +49,21 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _check_firmware(args: argparse.Namespace, values: dict) -> dict:
+def _check_firmware(args: argparse.Namespace, values: dict) -> tuple[dict, bool]:
     """What ``--firmware`` adds to the study's base (nothing for the C loop), checked on the base design before any
-    work; a 3pi program's designs start from the 3pi (the values given with --set win)."""
+    work, and whether it is a 3pi program other than the twin's own firmware (then the designs start from the 3pi:
+    the values given with --set win)."""
     program, _ = o.program_from_args(args)  # a bad file, or an --operator script without a 3pi program: one line now
     if args.firmware == "c":
-        return {}
+        return {}, False
     from twin.core.digital_twin import DigitalTwin
     from twin.model.motor_setup import MOTOR_MODEL
     from twin.model.robots import THREE_PI
     from twin.pil.board import runnable_program
     from twin.pil import runnable_firmware
 
-    if program is not None and not program.traced:
+    foreign = program is not None and not program.traced
+    if foreign:
         values.update({**THREE_PI.values, MOTOR_MODEL: THREE_PI.motor_model, **values})
     twin = DigitalTwin(track=args.track, track_metres_per_pixel=args.metres_per_pixel)
     twin.update({a: v for a, v in values.items() if a not in o.CATEGORICAL})
@@ -68,7 +71,7 @@ def _check_firmware(args: argparse.Namespace, values: dict) -> dict:
         runnable_firmware(twin)
     else:
         runnable_program(twin, program.path)
-    return {"firmware": args.firmware if program is None else program.path, "operator": args.operator}
+    return {"firmware": args.firmware if program is None else program.path, "operator": args.operator}, foreign
 
 
 def run(args: argparse.Namespace) -> int:
@@ -90,11 +93,13 @@ def run(args: argparse.Namespace) -> int:
         if address in fixed:
             check(fixed[address])  # an unknown name: one line that lists the choices
     space.update({a: v for a, v in fixed.items() if a not in o.CATEGORICAL})  # checked now: bad input, not a failing design
-    load_track(args.track, space.get("environment.line_width"), space.get("environment.texture_resolution"),
-               args.metres_per_pixel)  # an unknown track or unreadable image: one-line error before any work
+    track, _ = load_track(args.track, space.get("environment.line_width"), space.get("environment.texture_resolution"),
+                          args.metres_per_pixel)  # an unknown track or unreadable image: one-line error before any work
     designs = grid(params)
     values = {a: v if a in o.CATEGORICAL else float(v) for a, v in fixed.items()}
-    firmware = _check_firmware(args, values)
+    firmware, foreign = _check_firmware(args, values)
+    if not foreign:  # the twin's controller tunes every design (and drives them, but for a 3pi program)
+        refuse_maze(track, "the twin's controller")
     base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": values, "robust": args.robust,
             **firmware}
     from tqdm import tqdm
