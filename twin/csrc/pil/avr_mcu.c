@@ -71,32 +71,31 @@ static void before_tccr(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) 
   }
 }
 
-/* simavr 1.6 reads ICR1 only when Timer1 is (re)configured (a TCCR1A/B write that changes its clock or mode), so a
- * program that starts Timer1 with TOP = ICR1 and sets ICR1 after (OrangutanServos: TCCR1B first, then ICR1 = 25000)
- * counts to the old TOP, 0, for ever: an overflow every few cycles, the program crawling under its interrupts. After an
- * ICR1 write in a mode with TOP = ICR1 the glue stops and restarts the clock through TCCR1B's own handlers, so the
- * new TOP counts from then on. (ICR1L: the low byte completes a 16-bit write, ATmega328P datasheet 15.3.) */
-static void after_icr1(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
-  lf_avr *a = (lf_avr *)param;
-  uint8_t rb = reg(a, TCCR1B);
-  int wgm = (reg(a, TCCR1A) & 3) | ((rb >> 1) & 0xc);
-  avr_io_addr_t io = AVR_DATA_TO_IO(TCCR1B);
-  (void)addr;
-  (void)v;
-  if (!(rb & 7) || (wgm != 8 && wgm != 10 && wgm != 12 && wgm != 14)) return;
-  avr->io[io].w.c(avr, TCCR1B, (uint8_t)(rb & ~7u), avr->io[io].w.param); /* (the capture follows: after_tccr1) */
-  avr->io[io].w.c(avr, TCCR1B, rb, avr->io[io].w.param);
-}
-
-/* Timer1's input-capture flag at TOP, in the modes with TOP = ICR1 (datasheet 15.9.3-15.9.5: "the ICF1 flag is set
- * when TCNT1 reaches TOP"): simavr 1.6 raises it only on its external-clock path, so OrangutanServos' TIMER1_CAPT
- * never ran. The glue raises it once a period at TOP: with the overflow in fast PWM (WGM 14), half a period after it
- * in phase-correct and phase- and frequency-correct PWM (WGM 8, 10: simavr's overflow is BOTTOM there). Kept in step
- * with simavr's own period (tov_base, tov_cycles) whenever Timer1 is reconfigured. */
+/* Timer1 with TOP = ICR1 (WGM 8, 10, 14), the modes of libpololu-avr's OrangutanServos, where simavr 1.6 falls short
+ * twice. (1) It reads ICR1 only when the timer is reconfigured (a TCCR1A/B write that changes its clock or mode), so
+ * a program that starts the clock first and sets ICR1 after (OrangutanServos: TCCR1B, then ICR1 = 25000) counts to
+ * the old TOP, 0, for ever: an interrupt every few cycles, the program crawling. After an ICR1 write the glue stops
+ * and restarts the clock through TCCR1B's own handlers, so the new TOP counts from then on (ICR1L: the low byte
+ * completes a 16-bit write, ATmega328P datasheet 15.3). (2) It raises the input-capture flag at TOP ("the ICF1 flag
+ * is set when TCNT1 reaches TOP", 15.9.3-15.9.5) only on its external-clock path, so OrangutanServos' TIMER1_CAPT
+ * never ran. The glue raises it once a period: with the overflow in fast PWM (WGM 14), half a period after it in the
+ * phase-correct modes (WGM 8, 10: simavr's overflow is BOTTOM there), in step with simavr's own period (tov_base,
+ * tov_cycles) from every reconfiguration on. */
 int pil_timer1_top_is_icr(lf_avr *a) {
   uint8_t rb = reg(a, TCCR1B);
   int wgm = (reg(a, TCCR1A) & 3) | ((rb >> 1) & 0xc);
   return (rb & 7) && (wgm == 8 || wgm == 10 || wgm == 14) ? wgm : 0;
+}
+
+static void after_icr1(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+  lf_avr *a = (lf_avr *)param;
+  uint8_t rb = reg(a, TCCR1B);
+  avr_io_addr_t io = AVR_DATA_TO_IO(TCCR1B);
+  (void)addr;
+  (void)v;
+  if (!pil_timer1_top_is_icr(a)) return;
+  avr->io[io].w.c(avr, TCCR1B, (uint8_t)(rb & ~7u), avr->io[io].w.param); /* (the capture follows: after_tccr1) */
+  avr->io[io].w.c(avr, TCCR1B, rb, avr->io[io].w.param);
 }
 
 static avr_cycle_count_t capture_at_top(avr_t *avr, avr_cycle_count_t when, void *param) {
