@@ -59,18 +59,13 @@ def _check_firmware(args: argparse.Namespace, values: dict) -> tuple[dict, bool]
     from twin.core.digital_twin import DigitalTwin
     from twin.model.motor_setup import MOTOR_MODEL
     from twin.model.robots import THREE_PI
-    from twin.pil.board import runnable_program
-    from twin.pil import runnable_firmware
 
     foreign = program is not None and not program.traced
     if foreign:
         values.update({**THREE_PI.values, MOTOR_MODEL: THREE_PI.motor_model, **values})
     twin = DigitalTwin(track=args.track, track_metres_per_pixel=args.metres_per_pixel)
     twin.update({a: v for a, v in values.items() if a not in o.CATEGORICAL})
-    if program is None:
-        runnable_firmware(twin)
-    else:
-        runnable_program(twin, program.path)
+    o.check_program_runs(twin, program)
     return {"firmware": args.firmware if program is None else program.path, "operator": args.operator}, foreign
 
 

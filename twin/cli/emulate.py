@@ -18,8 +18,7 @@ from twin.link.emulator import (CommandPort, Drift, NoReader, accept, check_link
 from twin.link.robot_end import COMMAND_MODES, EepromFile, RobotEnd
 from twin.telemetry.wire import GAIN_ADDRESSES, valid_robot_id
 from twin.errors import TwinError
-from twin.pil.board import load_script, runnable_program
-from twin.pil.lap import runnable_firmware
+from twin.pil.board import load_script
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
 
@@ -104,10 +103,7 @@ def run(args: argparse.Namespace) -> int:
             if robot is not None and args.eeprom:
                 raise TwinError("--eeprom: the firmware on the MCU keeps its gains in the MCU's own EEPROM")
             elf = None if args.firmware == "avr" else args.firmware
-            if elf:  # a bad program or a missing simavr fails now, not when the first reader comes
-                runnable_program(twin, elf)
-            else:
-                runnable_firmware(twin, None)
+            o.check_program_runs(twin, program)  # a bad program or a missing simavr fails now, not at the first reader
             operator = (lambda: load_script(args.operator)) if script else None
             lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps, operator, drifts)
             robot = None  # its program answers (or not) for itself

@@ -27,9 +27,7 @@ def add_parser(sub) -> None:
     o.add_world(p)
     o.add_values(p)
     o.add_seed(p, 0)
-    p.add_argument("--lap-timeout", type=o.number(0.0, 3600.0, lo_open=True), default=60.0, metavar="SIM_S",
-                   help="a lap not done after this many simulated seconds ends as 'timeout' (a 3pi program that has "
-                   "not driven by then after power-up too)")
+    o.add_lap_timeout(p)
     p.add_argument("--timeout", dest="lap_timeout", type=o.number(0.0, 3600.0, lo_open=True),
                    action=o.deprecated(argparse._StoreAction, "--lap-timeout"), help=argparse.SUPPRESS)
     o.add_firmware(p, "the lap")

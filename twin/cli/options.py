@@ -182,6 +182,24 @@ def add_firmware(p: argparse.ArgumentParser, what: str, operator: bool = True) -
                        "polled the buttons for a moment with the motors still)")
 
 
+def add_lap_timeout(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--lap-timeout", type=number(0.0, 3600.0, lo_open=True), default=60.0, metavar="SIM_S",
+                   help="a lap not done after this many simulated seconds ends as 'timeout' (a 3pi program that has "
+                   "not driven by then after power-up too)")
+
+
+def check_program_runs(twin: DigitalTwin, program) -> None:
+    """The program ``--firmware`` names (None: the twin's own, built here) checked against ``twin`` before any lap:
+    one line (a missing simavr included) otherwise."""
+    from twin.pil import runnable_firmware
+    from twin.pil.board import runnable_program
+
+    if program is None:
+        runnable_firmware(twin)
+    else:
+        runnable_program(twin, program.path)
+
+
 def program_from_args(args: argparse.Namespace):
     """The program ``--firmware FILE`` names, loaded and checked for the MCU (None for c and avr); the ``--operator``
     script if one is given. A one-line TwinError on a bad file."""

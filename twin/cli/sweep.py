@@ -30,9 +30,7 @@ def add_parser(sub) -> None:
     o.add_workers(p, "laps of the batch (threads)")
     o.add_firmware(p, "every lap (avr or a program file: each lap runs on the emulated MCU, one after another on one "
                    "core, about 5 s a lap; a 3pi program keeps its own gains, so control.* cannot be swept with it)")
-    p.add_argument("--lap-timeout", type=o.number(0.0, 3600.0, lo_open=True), default=60.0, metavar="SIM_S",
-                   help="a lap not done after this many simulated seconds ends as 'timeout' (a 3pi program that has "
-                   "not driven by then after power-up too)")
+    o.add_lap_timeout(p)
     p.add_argument("--cluster", metavar="auto|ray://HOST:PORT", help="run each grid point's laps as a Ray task on a "
                    "cluster (pip install -e '.[cluster]'; the generated robot on a built-in track: nodes share no "
                    "files); the laps equal a local run's")
@@ -85,13 +83,9 @@ def _sweep_on_mcu(args, twin, program, script, axes, seeds):
 
     from tqdm import tqdm
 
-    from twin.pil.board import Operator, runnable_program
-    from twin.pil import runnable_firmware
+    from twin.pil.board import Operator
 
-    if program is None:
-        runnable_firmware(twin)
-    else:
-        runnable_program(twin, program.path)
+    o.check_program_runs(twin, program)
     operator = (lambda: copy.deepcopy(script)) if script else Operator  # a fresh operator for each lap
     lap = firmware_lap(program, operator, LapLimits(timeout_s=args.lap_timeout))
     bar = tqdm(total=math.prod(a.count for a in axes) * len(seeds), desc="sweep laps on the MCU", unit="lap",
