@@ -53,6 +53,32 @@ double lf_footprint_reflectance(const lf_texture *tex, double x, double y, doubl
   return tex->data[((int64_t)r * tex->width + c) * tex->nchannel] / 255.0;
 }
 
+#if defined(__GNUC__) || defined(__clang__)
+#define LF_PREFETCH(address) __builtin_prefetch((address), 0, 1)
+#else
+#define LF_PREFETCH(address) ((void)(address))
+#endif
+#define LF_CACHE_LINE 64 /* [bytes]; a smaller real line only leaves part of a row to the demand load */
+
+void lf_footprint_prefetch(const lf_texture *tex, double x, double y, double radius_m) {
+  const double mpp = tex->metres_per_pixel;
+  double c0f = floor((x - radius_m - tex->origin_x) / mpp), c1f = floor((x + radius_m - tex->origin_x) / mpp);
+  double r0f = floor(tex->height - (y + radius_m - tex->origin_y) / mpp);
+  double r1f = floor(tex->height - (y - radius_m - tex->origin_y) / mpp);
+  int64_t c0, c1, r0, r1, r, b;
+  /* in doubles first: a position far off the texture (or NaN) must not overflow the texel indices */
+  if (!(c1f >= 0.0 && r1f >= 0.0 && c0f < tex->width && r0f < tex->height)) return;
+  c0 = c0f < 0.0 ? 0 : (int64_t)c0f;
+  r0 = r0f < 0.0 ? 0 : (int64_t)r0f;
+  c1 = c1f > tex->width - 1 ? tex->width - 1 : (int64_t)c1f;
+  r1 = r1f > tex->height - 1 ? tex->height - 1 : (int64_t)r1f;
+  for (r = r0; r <= r1; r++) {
+    const uint8_t *row = tex->data + r * tex->width * tex->nchannel;
+    for (b = c0 * tex->nchannel; b < (c1 + 1) * tex->nchannel; b += LF_CACHE_LINE) LF_PREFETCH(row + b);
+    LF_PREFETCH(row + (c1 + 1) * tex->nchannel - 1); /* the row's last byte: its line, if the stride skipped it */
+  }
+}
+
 uint16_t lf_raw_reading(const lf_sensor_model *s, double reflectance, double height_m, double noise) {
   double h = height_m / s->falloff_height_m;
   double current = reflectance * (1.0 + s->noise_rel * noise) / (1.0 + h * h);

@@ -28,6 +28,10 @@ typedef struct {
 
 double lf_footprint_radius(const lf_sensor_model *s, double height_m);
 double lf_footprint_reflectance(const lf_texture *tex, double x, double y, double radius_m);
+/* Ask the CPU to bring the texels a footprint at (x, y) of radius_m would read into cache, without reading them:
+ * a hint that changes no result. The texture is megabytes and a footprint's rows lie a row's stride apart, so a
+ * footprint read cold waits on main memory once per row; fetched a tick ahead, while the physics steps, it does not. */
+void lf_footprint_prefetch(const lf_texture *tex, double x, double y, double radius_m);
 uint16_t lf_raw_reading(const lf_sensor_model *s, double reflectance, double height_m, double noise);
 
 /* splitmix64 (Steele, Lea, Flood 2014): small, seedable, and the same in every language. */
