@@ -10,7 +10,8 @@ Measured in one run on the default robot and track (shared machines are noisy; c
                  in Python every Δt — the references the C is tested against
 All on one thread, timed in CPU time of that thread (``time.thread_time``) with the garbage collector off, as
 ``timeit`` does: on a shared machine wall time swings ±15 % between identical runs, CPU time a few %.
-Targets: closed loop ≥ 90 % of the ceiling and ≥ 20× the Python loop.
+Targets: closed loop ≥ 90 % of the ceiling and ≥ 20× the Python loop. The closed loop's time is also split into
+MuJoCo's batch calls (physics and C callback) and Python between them, each measured on the same runs.
 
   python benchmarks/bench_closed_loop.py [--python-seconds 2] [--repeat 3] [--json]
 """
@@ -34,11 +35,40 @@ from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 
 
-def closed_loop(twin: DigitalTwin) -> tuple[float, object]:
-    """(wall s, lap result) of calibration + one lap on one thread."""
-    t0 = time.thread_time()
-    r = run_laps(twin, [{}], nthread=1, keep_traces=True, reuse_calibration=False)[0]  # the ceiling replays it too
-    return time.thread_time() - t0, r
+class BatchCallTimer:
+    """CPU time of this thread spent inside ``mujoco.batch.Batch.step`` and ``rollout`` (the physics and the C
+    callback), while installed: the rest of a closed-loop run is Python between the calls."""
+
+    def __init__(self):
+        self.seconds = 0.0
+        self._saved = {}
+
+    def __enter__(self):
+        for name in ("step", "rollout"):
+            method = self._saved[name] = getattr(mujoco.batch.Batch, name)
+
+            def timed(batch, *a, _method=method, **k):
+                t0 = time.thread_time()
+                try:
+                    return _method(batch, *a, **k)
+                finally:
+                    self.seconds += time.thread_time() - t0
+
+            setattr(mujoco.batch.Batch, name, timed)
+        return self
+
+    def __exit__(self, *exc):
+        for name, method in self._saved.items():
+            setattr(mujoco.batch.Batch, name, method)
+
+
+def closed_loop(twin: DigitalTwin) -> tuple[float, object, float]:
+    """(wall s, lap result, s inside MuJoCo's batch calls) of calibration + one lap on one thread."""
+    with BatchCallTimer() as inside:
+        t0 = time.thread_time()
+        r = run_laps(twin, [{}], nthread=1, keep_traces=True, reuse_calibration=False)[0]  # the ceiling replays it too
+        wall = time.thread_time() - t0
+    return wall, r, inside.seconds
 
 
 def voltages(twin: DigitalTwin, lap) -> tuple[np.ndarray, np.ndarray]:
@@ -110,13 +140,15 @@ def main() -> None:
     args = ap.parse_args()
     twin = DigitalTwin()
     model = twin.model()
-    _, lap = closed_loop(twin)  # warm-up: builds, caches, loads the library
+    _, lap, _ = closed_loop(twin)  # warm-up: builds, caches, loads the library
     gc.disable()
     cal, run = voltages(twin, lap)
     nstep, sim_s = len(cal) + len(run), (len(cal) + len(run)) * model.opt.timestep
-    walls, ceils = [], []
+    walls, ceils, insides = [], [], []
     for _ in range(args.repeat):  # in pairs, so both of a pair see the same machine
-        walls.append(closed_loop(twin)[0])
+        w, _, inside = closed_loop(twin)
+        walls.append(w)
+        insides.append(inside)
         ceils.append(ceiling(model, [cal, run]))
     wall = min(walls)
     ceil, qpos = min(ceils, key=lambda x: x[0])
@@ -137,6 +169,10 @@ def main() -> None:
         "python_loop_steps_per_s": py_steps / py_wall,
         "ratio_closed_loop_over_ceiling": paired,
         "ratio_best_over_best": ceil / wall,
+        # the closed loop's time inside MuJoCo's batch calls (physics + C callback) against the ceiling, and the
+        # share of its time spent in Python between those calls (setting laps up, draining and judging each chunk)
+        "ratio_batch_calls_over_ceiling": float(np.median([c[0] / i for i, c in zip(insides, ceils)])),
+        "python_share_of_closed_loop": float(np.median([1 - i / w for w, i in zip(walls, insides)])),
         "ratio_closed_loop_over_python": (nstep / wall) / (py_steps / py_wall),
         "replay_max_deviation_m": deviation,
     }
@@ -151,6 +187,9 @@ def main() -> None:
     print(f"  Python loop        : {out['python_loop_steps_per_s']:10.0f} steps/s")
     print(f"  closed / ceiling   : {out['ratio_closed_loop_over_ceiling'] * 100:.1f} %   (median of {args.repeat} paired runs; "
           f"best/best {out['ratio_best_over_best'] * 100:.1f} %; target ≥ 90 %)")
+    print(f"    of which inside MuJoCo's batch calls (physics + C callback): {out['ratio_batch_calls_over_ceiling'] * 100:.1f} % "
+          f"of the ceiling; Python between the calls (setup, draining and judging each chunk): "
+          f"{out['python_share_of_closed_loop'] * 100:.1f} % of the closed loop's time")
     print(f"  closed / Python    : {out['ratio_closed_loop_over_python']:.1f}×   (target ≥ 20×)")
 
 

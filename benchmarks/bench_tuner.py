@@ -9,11 +9,15 @@
     the completion rate over the envelope's corners on 20 held-out seeds (target 100 %) against the plain gains'
     rate; the price of robustness: the nominal lap of the robust gains against the plain gains'
   * the robust preset as delivered against the same preset as before issue 26 (``LapObjective(stop_early=False)``:
-    every lap runs to its end, no racing in the line search, every stencil point on every lap), same machine,
-    same physics step: wall and laps ratio, held-out completion, the nominal lap's difference, the same gains
+    every lap runs to its end, no racing in the line search, every stencil point on every lap), same machine, one
+    run, at each of the baseline steps ``--before-steps`` (default: 0.25 ms, the baseline issue 26 names, and
+    1 ms, the project's default step when the issue was filed): wall, CPU and laps ratios, held-out completion, the
+    nominal lap's difference (target within 0.5 %), whether the gains are the same; ``--step`` runs the delivered
+    side at another step (e.g. 5/3 ms, the step ``bench_timestep.py`` recommends)
 
   pip install -e '.[bench]'   # cma
-  python benchmarks/bench_tuner.py [--cma-evals 600] [--no-cma] [--robust-only] [--json]
+  python benchmarks/bench_tuner.py [--cma-evals 600] [--no-cma] [--robust-only] [--before-steps 0.00025,0.001]
+                                   [--step S] [--json]
 """
 
 from __future__ import annotations
@@ -90,6 +94,35 @@ def compared(robust: dict, before: dict) -> dict:
             "robust_same_gains": robust["gains"] == before["gains"]}
 
 
+def at_step(step_s: float | None) -> DigitalTwin:
+    """The default twin, at physics step ``step_s`` [s] (None: its default)."""
+    twin = DigitalTwin()
+    if step_s is not None:
+        twin.set("motion.timestep", step_s)
+    twin.model()
+    return twin
+
+
+def robust_before(step_s: float, envelope: Envelope) -> dict:
+    """The robust preset as before issue 26 (laps to the end, no racing) at physics step ``step_s`` [s]."""
+    twin = at_step(step_s)
+    before = tune(descend, twin, envelope, Risk.parse(ROBUST_RISK), stop_early=False)
+    before["nominal_lap_time_s"] = nominal_lap(twin, before["gains"])
+    before["timestep_s"] = step_s
+    return before
+
+
+def steps(text: str) -> list[float]:
+    """--before-steps: comma-separated physics steps [s], each > 0."""
+    try:
+        out = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a comma-separated list of steps in seconds: {text!r}") from None
+    if not out or not all(0 < v < 1 for v in out):
+        raise argparse.ArgumentTypeError(f"each step must be in (0, 1) s: {text!r}")
+    return out
+
+
 def plain(twin: DigitalTwin, envelope: Envelope, args, robust: dict) -> dict:
     """Plain tuning, batched and sequential, CMA-ES, and the plain gains' completion over the envelope."""
     batch = tune(descend, twin)
@@ -104,18 +137,25 @@ def plain(twin: DigitalTwin, envelope: Envelope, args, robust: dict) -> dict:
     }
 
 
-def print_robust(out: dict, envelope: Envelope, timestep: float) -> None:
-    robust, before = out["robust"], out["robust_before"]
+def print_robust(out: dict, envelope: Envelope) -> None:
+    robust = out["robust"]
     print(f"robust preset ({len(envelope.scenarios)} scenarios × {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap), "
-          f"physics step {timestep * 1e3:g} ms, default robot and track")
-    for name, r in (("as delivered", robust), ("as before (laps to the end, no racing)", before)):
-        print(f"  {name}: {r['wall_s']:.1f} s wall (target < 90 s), {r['cpu_s']:.1f} s CPU, {r['laps']} laps, {r['iterations']} iterations, "
-              f"worst lap {r['cost_s']:.4f} s")
-    change = out["robust_nominal_lap_change"]
-    print(f"  ratio: {out['robust_speedup_wall']:.2f}× wall, {out['robust_speedup_cpu']:.2f}× CPU, "
-          f"{out['robust_speedup_laps']:.2f}× laps; same gains: "
-          f"{out['robust_same_gains']}; nominal lap {robust['held_out']['nominal_lap_time_s']:.3f} s, "
-          + (f"{change * 100:+.3f} % against before" if change is not None else "not completed by one of them"))
+          f"default robot and track")
+
+    def row(name: str, r: dict) -> None:
+        print(f"  {name}: {r['wall_s']:.1f} s wall (target < 90 s), {r['cpu_s']:.1f} s CPU, {r['laps']} laps, "
+              f"{r['iterations']} iterations, worst lap {r['cost_s']:.4f} s")
+
+    row(f"as delivered, {robust['timestep_s'] * 1e3:g} ms step", robust)
+    for c in out["robust_before"]:
+        before = c["before"]
+        row(f"as before (laps to the end, no racing), {before['timestep_s'] * 1e3:g} ms step", before)
+        change = c["robust_nominal_lap_change"]
+        print(f"    delivered against it: {c['robust_speedup_cpu']:.2f}× CPU (target ≥ 2.5×), "
+              f"{c['robust_speedup_wall']:.2f}× wall, {c['robust_speedup_laps']:.2f}× laps; same gains: "
+              f"{c['robust_same_gains']}; nominal lap {robust['held_out']['nominal_lap_time_s']:.3f} s, "
+              + (f"{change * 100:+.3f} % against it (target within 0.5 %)" if change is not None
+                 else "not completed by one of them"))
     print(f"  held-out completion (as delivered): {robust['held_out']['rate'] * 100:.0f} % over the envelope's corners on "
           f"{HELD_OUT} seeds (target 100 %)")
 
@@ -126,24 +166,33 @@ def main() -> None:
     ap.add_argument("--no-cma", action="store_true", help="skip the CMA-ES comparison (about a minute)")
     ap.add_argument("--robust-only", action="store_true",
                     help="only the robust preset, as delivered and as before (laps to the end, no racing)")
+    ap.add_argument("--before-steps", type=steps, default=[0.00025, 0.001], metavar="S[,S...]",
+                    help="physics steps [s] of the 'as before' baselines (default 0.00025,0.001: issue 26's named "
+                         "baseline and the default step when it was filed)")
+    ap.add_argument("--step", type=float, default=None,
+                    help="physics step [s] of the delivered side (default: the twin's default)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
+    if args.step is not None and not 0 < args.step < 1:
+        ap.error(f"--step: must be in (0, 1) s, got {args.step:g}")
     logging.disable(logging.WARNING)
     warnings.filterwarnings("ignore")
-    twin = DigitalTwin()
-    twin.model()
+    twin = at_step(args.step)
     envelope = Envelope.of(ROBUST_AXES, range(ROBUST_SEEDS))
     robust = tune(descend, twin, envelope, Risk.parse(ROBUST_RISK))
     robust["held_out"] = completion(twin, robust["gains"], envelope)
-    before = tune(descend, twin, envelope, Risk.parse(ROBUST_RISK), stop_early=False)
-    before["nominal_lap_time_s"] = nominal_lap(twin, before["gains"])
-    out = {"robust": robust, "robust_before": before, **compared(robust, before)}
+    robust["timestep_s"] = twin.space.get("motion.timestep")
+    baselines = []
+    for step_s in args.before_steps:
+        before = robust_before(step_s, envelope)
+        baselines.append({"before": before, **compared(robust, before)})
+    out = {"robust": robust, "robust_before": baselines}
     if not args.robust_only:
-        out.update(plain(twin, envelope, args, robust))
+        out.update(plain(twin if args.step is None else at_step(None), envelope, args, robust))
     if args.json:
         print(json.dumps(out))
         return
-    print_robust(out, envelope, twin.space.get("motion.timestep"))
+    print_robust(out, envelope)
     if args.robust_only:
         return
     batch, seq, glob = out["batch"], out["sequential"], out["cma_es"]

@@ -277,6 +277,7 @@ LOG_KEEP, LOG_TEXT = 8, 512  # distinct messages and bytes of each asked for at 
 _LEVELS = (logging.DEBUG, logging.INFO, logging.WARNING, logging.ERROR)  # mjtLogLevel
 lib.lf_log_drain.argtypes = [ctypes.c_char_p, ctypes.POINTER(c_int32), ctypes.POINTER(c_int64), c_int32, c_int32]
 lib.lf_log_drain.restype = c_int64
+lib.lf_log_pending.restype = c_int64
 lib.lf_log_chain.argtypes = [ctypes.c_void_p]
 _mujoco.mju_setLogHandler.argtypes = [ctypes.c_void_p]
 _mujoco.mju_setLogHandler.restype = ctypes.c_void_p
@@ -286,6 +287,8 @@ lib.lf_log_chain(_mujoco.mju_setLogHandler(ctypes.cast(lib.lf_log_handler, ctype
 def flush_mujoco_log() -> int:
     """Log the MuJoCo messages received since the last flush to the ``mujoco`` logger: a few distinct ones with
     how often each came, the rest as one count. Returns how many there were. Safe to call from any thread."""
+    if not lib.lf_log_pending():
+        return 0
     text = ctypes.create_string_buffer(LOG_KEEP * LOG_TEXT)
     levels, counts = (c_int32 * LOG_KEEP)(), (c_int64 * LOG_KEEP)()
     total = lib.lf_log_drain(text, levels, counts, LOG_KEEP, LOG_TEXT)

@@ -47,6 +47,16 @@ void lf_log_handler(const mjLogMessage *msg) {
 /* Hand over the handler that was active before ours (mju_setLogHandler's return value). */
 void lf_log_chain(mjfLogHandler previous) { next = previous; }
 
+/* How many messages came since the last drain: a drain with nothing to hand over is skipped (Python drains after
+ * every batch call, and a drain allocates its buffers). */
+int64_t lf_log_pending(void) {
+  int64_t n;
+  pthread_mutex_lock(&lock);
+  n = received;
+  pthread_mutex_unlock(&lock);
+  return n;
+}
+
 /* Copy up to n kept messages (text[n][text_size], level[n], count[n]) and forget them all; returns how many
  * messages came since the last drain, kept or not. Slots beyond those kept get count 0. */
 int64_t lf_log_drain(char *text, int32_t *level, int64_t *count, int32_t n, int32_t text_size) {
