@@ -15,7 +15,8 @@ more than 0.1 %): near the grip limit a lap's path depends on the noise. Gains a
 the tuner, robust, or moderate by hand) or *poor* (weak steering that weaves 60–80 mm off the line, or too fast for
 its steering). The rule (docs/performance.md, "The physics step"): the recommended step is the largest one at
 which every regular lap of raced gains, on every robot, moves by at most 0.1 % and no decision the seeds agree on
-changes (the default stays 1 ms until the documented lap figures are re-based on it). Chaotic laps and poor gains are reported beside it, against today's 1 ms: neither meets 0.1 % at any step
+changes; which laps are regular depends on the seed count, so the verdict does too (docs/performance.md: 5/3 ms on 5
+seeds, 1.25 ms on 10; the default stays 1 ms, the step that also keeps the tuner's robust answer). Chaotic laps and poor gains are reported beside it, against today's 1 ms: neither meets 0.1 % at any step
 above 0.5 ms. ``--convergence`` adds the grip-limited case (robust gains, μ 0.6, 6 V) on 20 seeds down to 0.0625 ms.
 
   python benchmarks/bench_timestep.py [--seeds 5] [--steps-ms 0.25,0.5,1,1.25,1.6667,2.5] [--convergence] [--json]
