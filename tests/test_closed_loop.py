@@ -375,3 +375,35 @@ def test_stopping_decided_laps_changes_no_result(twin):
     early, late = run_laps(twin, [laps[done]] * 2, seed=done, keep_traces=False, deadline_s=[t / 2, t + 1.0])
     assert early.failure == "stopped" and t / 2 < early.simulated_s < t and not early.completed
     assert late.summary() == stopped[done].summary()
+
+
+@pytest.mark.parametrize("limits", [LapLimits(), LapLimits(max_cross_track_m=0.01), LapLimits(max_progress_jump_m=0.003),
+                                    LapLimits(timeout_s=5.0), LapLimits(min_calibration_range_us=3000.0)],
+                         ids=["default", "off_track", "cut_across", "timeout", "calibration"])
+def test_laps_judged_in_c_alone_equal_laps_judged_from_their_trace(twin, limits):
+    """A lap whose trace is not kept is judged by the C loop alone and runs to its end in one call; its result, what it
+    says and the statistics included, is the one Python's judge reaches from the same lap's trace: completed, line
+    lost, off the track (either way), timed out, a failed calibration, stopped past a deadline."""
+    laps = [{}, {"control.kp": 2.0}, {"motion.mu": 0.2}, {"control.v_max": 1.6}, {**RECKLESS, "motion.mu": 0.6}]
+    seeds = list(range(len(laps)))
+    alone = run_laps(twin, laps, seed=seeds, keep_traces=False, limits=limits)
+    traced = run_laps(twin, laps, seed=seeds, keep_traces=True, limits=limits)
+    assert [r.summary() for r in alone] == [r.summary() for r in traced]
+    assert all(r.trace is None for r in alone)
+    deadline = [3.0] * len(laps)
+    assert ([r.summary() for r in run_laps(twin, laps, seed=seeds, keep_traces=False, limits=limits, deadline_s=deadline)]
+            == [r.summary() for r in run_laps(twin, laps, seed=seeds, keep_traces=True, limits=limits, deadline_s=deadline)])
+
+
+def test_the_cases_of_laps_judged_in_c_alone_happen(twin):
+    """The equality above covers each way a lap ends, each with its own detail."""
+    laps = [{}, {"control.kp": 2.0}, {"motion.mu": 0.2}, {"control.v_max": 1.6}, {**RECKLESS, "motion.mu": 0.6}]
+    seeds = list(range(len(laps)))
+    said = set()
+    for limits in (LapLimits(), LapLimits(max_cross_track_m=0.01), LapLimits(max_progress_jump_m=0.003),
+                   LapLimits(timeout_s=5.0), LapLimits(min_calibration_range_us=3000.0)):
+        for deadline in (None, [3.0] * len(laps)):
+            said |= {(r.failure, r.detail.split(" ")[0]) for r in
+                     run_laps(twin, laps, seed=seeds, keep_traces=False, limits=limits, deadline_s=deadline)}
+    assert {(None, "lap"), ("line_lost", "line"), ("off_track", "more"), ("off_track", "cut"), ("timeout", "no"),
+            ("calibration", "sensor"), ("stopped", "stopped")} <= said, said

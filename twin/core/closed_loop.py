@@ -40,7 +40,7 @@ from twin.core.calibration import range_too_small, turn_too_long
 from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
-from twin.core.lap import LapJudge, LapLimits, LapResult
+from twin.core.lap import CJudgeView, LapJudge, LapLimits, LapResult
 from twin.core.maze import refuse_maze
 from twin.core.outcomes import Outcome
 from twin.core.variant import Variant, field_key
@@ -101,14 +101,17 @@ def run_laps(
     refuse_maze(twin.track, "the twin's controller")
     laps = [Variant.of(twin, v) for v in variants]
     core.install_callback()
-    fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds,
-                  [LapJudge(twin.track, limits, keep_traces) for _ in laps], stop_decided)
+    fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds, [], stop_decided)
+    # a lap the C judges and whose trace is not kept is judged in C alone: nothing to drain between chunks
+    fleet.c_only = stop_decided and not keep_traces
+    fleet.judges = [fleet.c_judge(i, limits) if fleet.c_only else LapJudge(twin.track, limits, keep_traces)
+                    for i in range(len(laps))]
     _refuse_long_turns(fleet, limits)
     keys = [lap.calibration_key(s) for lap, s in zip(laps, seeds)]
     turns = twin.calibrations.of(twin.rebuilds) if reuse_calibration else {}
     failed = _calibrate(fleet, keys, turns)
     fleet.cal = _start_laps(fleet, keys, turns, failed, limits, deadlines)
-    _drive(fleet, twin.track.length_m, on_chunk, cut)
+    _drive(fleet, twin.track.length_m, on_chunk, cut, limits)
     return [fleet.result(i) for i in range(len(laps))]
 
 
@@ -152,11 +155,18 @@ class Fleet:
                  seeds: list[int], judges: list[LapJudge], stop_decided: bool = False):
         self.twin, self.model, self.batch, self.laps, self.seeds, self.judges = twin, model, batch, laps, seeds, judges
         self.stop_decided = stop_decided
+        self.c_only = False  # judged in C alone (CJudgeView), no trace drained
         self.steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]  # physics steps per tick
         self.sims: list[core.Sim] = []
         self.consumed = np.zeros(len(laps), dtype=np.int64)  # records each judge has read
         self.cal: list[tuple] = [([], [])] * len(laps)  # each lap's calibration (min, max)
         self.results: dict[int, LapResult] = {}
+
+    def c_judge(self, i: int, limits: LapLimits) -> CJudgeView:
+        """Lap i judged by the C loop alone, read from its current head and trace ring."""
+        return CJudgeView(lambda: self.sims[i] if self.sims else None,
+                          lambda k: core.records_view(self.batch.userdata[i])[k % self.sims[i].record_capacity],
+                          limits, self.twin.track.length_m)
 
     def result(self, i: int) -> LapResult:
         """Lap i's result, once it has ended (made once)."""
@@ -229,7 +239,10 @@ class Fleet:
         self.judges[i].fail(code, detail, float(self.batch.time[i]), 0.0)
 
     def drain(self, ids: list[int]) -> None:
-        """Feed each running lap's judge the trace records written since the last drain."""
+        """Feed each running lap's judge the trace records written since the last drain (none to feed when the C
+        judges alone)."""
+        if self.c_only:
+            return
         rows = self.batch.userdata
         for i in ids:
             if self.judges[i].done:
@@ -360,8 +373,11 @@ def start_judge(sim: core.Sim, length_m: float, limits: LapLimits, deadline_s: f
 
 # --- the lap
 def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None] | None,
-           cut: Callable[[list[Progress]], Iterable[int]] | None = None) -> None:
-    """Step the running laps chunk by chunk, judging each chunk, until every lap has ended."""
+           cut: Callable[[list[Progress]], Iterable[int]] | None = None, limits: LapLimits = LapLimits()) -> None:
+    """Step the running laps chunk by chunk, judging each chunk, until every lap has ended. Laps judged in C alone,
+    with no caller to hear between chunks (``on_chunk``, ``cut``), run in one call to their end: the tick they are
+    decided, at the latest the one past the timeout."""
+    whole = fleet.c_only and on_chunk is None and cut is None
     # no lap can be faster than its wheels' no-load speed: step no further than that could finish it (needed only
     # when laps do not stop themselves once decided)
     tick_m = [lap.params.wheel_speed_max * lap.params.wheel_radius_m * lap.physics.timestep * k
@@ -373,7 +389,12 @@ def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None]
         # laps with the same chunk step together, so a lap near its end does not hold back the rest
         groups: dict[int, list[int]] = {}
         for i in active:
-            ticks = CHUNK_TICKS if fleet.stop_decided else chunk_ticks(length_m - (fleet.judges[i].u_last or 0.0), tick_m[i])
+            if whole:  # the ticks left until the first one past the timeout
+                ticks = max(CHUNK_TICKS, math.ceil(limits.timeout_s / fleet.laps[i].params.dt_s) + 2 - fleet.sims[i].ticks)
+            elif fleet.stop_decided:
+                ticks = CHUNK_TICKS
+            else:
+                ticks = chunk_ticks(length_m - (fleet.judges[i].u_last or 0.0), tick_m[i])
             groups.setdefault(ticks * fleet.steps[i], []).append(i)
         for nstep, ids in sorted(groups.items()):
             fleet.run(np.array(ids), nstep)

@@ -30,10 +30,11 @@ import numpy as np
 
 from mjcf.track import Track
 from twin.core import native as core
-from twin.core.outcomes import Outcome
+from twin.core.outcomes import LAP_STATUS, Outcome
 from twin.errors import TwinError
 
 COL = {name: i for i, name in enumerate(core.RECORD_FIELDS)}
+_UNSTARTED = core.JudgeC()  # a C judge that has seen no record (all zeros: running, not started)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,6 +120,16 @@ def earliest(events, n: int) -> tuple[int, tuple[Outcome, str] | None]:
     return end, why
 
 
+def event_details(lim: LapLimits) -> dict[str, str]:
+    """What each event that ends a lap says, by event (an off-track lap says which of its two events ended it)."""
+    return {"diverged": "the physics produced a non-finite pose",
+            "off_track": f"more than {lim.max_cross_track_m * 100:g} cm from the line",
+            "cut_across": "cut across to another part of the track",
+            "line_lost": f"line not seen for {lim.max_line_lost_s:g} s",
+            "completed": "lap completed",
+            "timeout": f"no lap after {lim.timeout_s:g} s"}
+
+
 class LapJudge:
     """Follows one simulation's trace chunk by chunk and decides when and how its lap ends."""
 
@@ -151,20 +162,22 @@ class LapJudge:
             self.prev = (float(t[0]), self.u_last, float(rec[0, COL["energy_j"]]))
         du = np.diff(np.concatenate([[self.s_last], s]))
         du = np.mod(du + length / 2, length) - length / 2
-        u = self.u_last + np.cumsum(du)
+        # summed record by record from the last tick's progress (accumulate is sequential), as the C judge sums it:
+        # the progress, and so a completed lap's time, does not depend on how the trace was chunked
+        u = np.cumsum(np.concatenate([[self.u_last], du]))[1:]
         seen = rec[:, COL["line_seen"]] > 0
         last_seen = np.maximum.accumulate(np.where(seen, t, -np.inf))
         last_seen = np.maximum(last_seen, self.t_seen)
         lim = self.limits
         finite = np.isfinite(rec[:, COL["x_m"]]) & np.isfinite(rec[:, COL["y_m"]])
-        events = [
-            (~finite, Outcome.DIVERGED, "the physics produced a non-finite pose"),
-            (np.abs(offset) > lim.max_cross_track_m, Outcome.OFF_TRACK,
-             f"more than {lim.max_cross_track_m * 100:g} cm from the line"),
-            (np.abs(du) > lim.max_progress_jump_m, Outcome.OFF_TRACK, "cut across to another part of the track"),
-            (t - last_seen > lim.max_line_lost_s, Outcome.LINE_LOST, f"line not seen for {lim.max_line_lost_s:g} s"),
-            (u >= length, Outcome.COMPLETED, "lap completed"),
-            (t > lim.timeout_s, Outcome.TIMEOUT, f"no lap after {lim.timeout_s:g} s"),
+        say = event_details(lim)
+        events = [  # in the order lap_judge.c tests them: at one record, the first listed wins
+            (~finite, Outcome.DIVERGED, say["diverged"]),
+            (np.abs(offset) > lim.max_cross_track_m, Outcome.OFF_TRACK, say["off_track"]),
+            (np.abs(du) > lim.max_progress_jump_m, Outcome.OFF_TRACK, say["cut_across"]),
+            (t - last_seen > lim.max_line_lost_s, Outcome.LINE_LOST, say["line_lost"]),
+            (u >= length, Outcome.COMPLETED, say["completed"]),
+            (t > lim.timeout_s, Outcome.TIMEOUT, say["timeout"]),
         ]
         end, why = earliest(events, len(rec))
         keep = slice(0, end + 1 if why else end)
@@ -200,6 +213,81 @@ class LapJudge:
 
     def result(self, count: int, cal_min, cal_max, parameters: dict) -> LapResult:
         return judged(self, self.track.length_m, count, cal_min, cal_max, parameters)
+
+
+class CJudgeView:
+    """A lap judged by the C loop alone (``lap_judge.c``, fed every record by the control callback), read from the
+    simulation's head: what :class:`LapJudge` decides from the same records, bit for bit (tests/test_lap_judge_c.py),
+    with no trace drained into Python between chunks. For laps whose trace is not kept.
+
+    ``head()`` gives the simulation's current :class:`twin.core.native.Sim`, or None before it has one (it is
+    rewritten when the batch resets)
+    and ``record(k)`` its k-th record of the phase (still in the trace ring: the lap stops at the record that ends
+    it). A failure from outside the trace (``fail``) is kept here."""
+
+    keep_trace = False
+    chunks: tuple = ()
+
+    def __init__(self, head, record, limits: LapLimits, length_m: float):
+        self.head, self.record, self.limits, self.length_m = head, record, limits, length_m
+        self.external: tuple | None = None
+
+    @property
+    def _c(self):
+        head = self.head()
+        return head.judge if head is not None else _UNSTARTED  # before the batch has its heads
+
+    @property
+    def done(self) -> bool:
+        return self.external is not None or self._c.status != 0
+
+    @property
+    def prev(self) -> tuple[float, float, float]:
+        """Time, progress and energy at the last record before the end (as LapJudge's while the lap runs)."""
+        c = self._c
+        return c.prev_t, c.prev_u, c.prev_energy
+
+    @property
+    def u_last(self) -> float | None:
+        c = self._c
+        return c.u_last if c.started else None
+
+    @property
+    def n(self) -> int:
+        return int(self._c.records)
+
+    @property
+    def abs_sum(self) -> float:
+        return self._c.abs_sum
+
+    @property
+    def abs_max(self) -> float:
+        return self._c.abs_max
+
+    def feed(self, rec: np.ndarray) -> None:
+        """Nothing to do: the C judge has seen every record."""
+
+    def fail(self, code: Outcome, detail: str, t: float, energy: float) -> None:
+        if not self.done:
+            self.external = (code, detail, t, self.u_last or 0.0, energy)
+
+    @property
+    def outcome(self) -> tuple[Outcome, str, float, float, float] | None:
+        if self.external is not None:
+            return self.external
+        c = self._c
+        if c.status == 0:
+            return None
+        code = Outcome(LAP_STATUS[c.status])
+        say = event_details(self.limits)
+        event = code.value
+        if code == Outcome.OFF_TRACK:  # the record that ended it says which: cross-track is tested first
+            last = self.record(int(c.records) - 1)
+            event = "off_track" if abs(last[COL["offset_m"]]) > self.limits.max_cross_track_m else "cut_across"
+        return code, say.get(event, event.replace("_", " ")), c.end_t, c.end_u, c.end_energy
+
+    def result(self, count: int, cal_min, cal_max, parameters: dict) -> LapResult:
+        return judged(self, self.length_m, count, cal_min, cal_max, parameters)
 
 
 def judged(judge, length_m: float, count: int, cal_min, cal_max, parameters: dict) -> LapResult:
