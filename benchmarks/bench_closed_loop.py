@@ -195,7 +195,7 @@ def main() -> None:
     print(f"  closed / ceiling   : {out['ratio_closed_loop_over_ceiling'] * 100:.1f} %   (median of {args.repeat} paired runs; "
           f"best/best {out['ratio_best_over_best'] * 100:.1f} %; target ≥ 90 %; no trace kept, as laps for answers run)")
     print(f"    of which inside MuJoCo's batch calls (physics + C callback): {out['ratio_batch_calls_over_ceiling'] * 100:.1f} % "
-          f"of the ceiling; Python between the calls (setup, draining and judging each chunk): "
+          f"of the ceiling; Python around them (setting the lap up, between calls): "
           f"{out['python_share_of_closed_loop'] * 100:.1f} % of the closed loop's time")
     print(f"  with the trace kept: {out['ratio_traced_over_ceiling'] * 100:.1f} % of the ceiling (Python drains and judges "
           f"it every 1.6 s chunk: lap, record, the viewers)")

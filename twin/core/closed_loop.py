@@ -48,6 +48,9 @@ from twin.core.variant import Variant, field_key
 log = logging.getLogger(__name__)
 
 CHUNK_TICKS = 320  # control ticks per batch call at most (1.6 s at 5 ms): Python runs once per chunk, not per step
+# laps judged in C alone run longer calls, up to this many ticks over all their laps (a 64-lap chunk's worth, well
+# under a second of CPU): one call for a few laps, and a Ctrl-C, heard between calls, still heard as soon as before
+CALL_TICKS = 64 * CHUNK_TICKS
 MIN_CHUNK_TICKS = 10  # near the finish, chunks shrink to what could still finish the lap, but not below this
 SEED_SALT = 0x5DEECE66D  # mixes the user's seed into the C generator's state
 SEED_MAX = 2**64 - 1  # the C generator's state is a uint64
@@ -375,8 +378,9 @@ def start_judge(sim: core.Sim, length_m: float, limits: LapLimits, deadline_s: f
 def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None] | None,
            cut: Callable[[list[Progress]], Iterable[int]] | None = None, limits: LapLimits = LapLimits()) -> None:
     """Step the running laps chunk by chunk, judging each chunk, until every lap has ended. Laps judged in C alone,
-    with no caller to hear between chunks (``on_chunk``, ``cut``), run in one call to their end: the tick they are
-    decided, at the latest the one past the timeout."""
+    with no caller to hear between chunks (``on_chunk``, ``cut``), run in longer calls (``CALL_TICKS`` shared by the
+    laps): a few laps run to their end in one call, the tick they are decided or at the latest the one past the
+    timeout."""
     whole = fleet.c_only and on_chunk is None and cut is None
     # no lap can be faster than its wheels' no-load speed: step no further than that could finish it (needed only
     # when laps do not stop themselves once decided)
@@ -389,8 +393,9 @@ def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None]
         # laps with the same chunk step together, so a lap near its end does not hold back the rest
         groups: dict[int, list[int]] = {}
         for i in active:
-            if whole:  # the ticks left until the first one past the timeout
-                ticks = max(CHUNK_TICKS, math.ceil(limits.timeout_s / fleet.laps[i].params.dt_s) + 2 - fleet.sims[i].ticks)
+            if whole:  # the ticks left until the first one past the timeout, within the call's share
+                left = math.ceil(limits.timeout_s / fleet.laps[i].params.dt_s) + 2 - fleet.sims[i].ticks
+                ticks = max(CHUNK_TICKS, min(left, CALL_TICKS // len(active)))
             elif fleet.stop_decided:
                 ticks = CHUNK_TICKS
             else:
