@@ -13,11 +13,13 @@ tick). Per configuration and step, against the 0.25 ms reference with the same s
 A configuration is *chaotic* when the noise alone moves it (its seeds split the decision or spread the lap time by
 more than 0.1 %): near the grip limit a lap's path depends on the noise. Gains are *raced* (the default, tuned by
 the tuner, robust, or moderate by hand) or *poor* (weak steering that weaves 60–80 mm off the line, or too fast for
-its steering). The rule (docs/performance.md, "The physics step"): the recommended step is the largest one at
-which every regular lap of raced gains, on every robot, moves by at most 0.1 % and no decision the seeds agree on
-changes; which laps are regular depends on the seed count, so the verdict does too (docs/performance.md: 5/3 ms on 5
-seeds, 1.25 ms on 10; the default stays 1 ms, the step that also keeps the tuner's robust answer). Chaotic laps and poor gains are reported beside it, against today's 1 ms: neither meets 0.1 % at any step
-above 0.5 ms. ``--convergence`` adds the grip-limited case (robust gains, μ 0.6, 6 V) on 20 seeds down to 0.0625 ms.
+its steering). The rule (docs/performance.md, "The physics step"): the largest step at which every regular lap of
+raced gains, on every robot, moves by at most 0.1 % against 0.25 ms and no decision the seeds agree on changes.
+Which laps are regular depends on the seed count, so the verdict does too: 5/3 ms on 5 seeds, 1.25 ms on 10. The
+default stays 1 ms, the step that also keeps the tuner's robust answer (docs/performance.md). Chaotic laps and poor
+gains are reported beside the rule, against the same 0.25 ms reference: chaotic laps move by more than 0.1 % at
+every step above it. ``--convergence`` adds the grip-limited case (robust gains, μ 0.6, 6 V) on 20 seeds down to
+0.0625 ms. About 8 min on 2 cores with 5 seeds; 10 seeds and four steps take about 10 min.
 
   python benchmarks/bench_timestep.py [--seeds 5] [--steps-ms 0.25,0.5,1,1.25,1.6667,2.5] [--convergence] [--json]
 """

@@ -13,7 +13,8 @@
     run, at each of the baseline steps ``--before-steps`` (default: 0.25 ms, the baseline issue 26 names, and
     1 ms, the project's default step when the issue was filed): wall, CPU and laps ratios, held-out completion, the
     nominal lap's difference (target within 0.5 %), whether the gains are the same; ``--step`` runs the delivered
-    side at another step (e.g. 5/3 ms, the step ``bench_timestep.py`` recommends)
+    side at another step (e.g. 5/3 ms, the largest step ``bench_timestep.py`` allows on 5 seeds; docs/performance.md
+    says why the default stays 1 ms)
 
   pip install -e '.[bench]'   # cma
   python benchmarks/bench_tuner.py [--cma-evals 600] [--no-cma] [--robust-only] [--before-steps 0.00025,0.001]
@@ -36,6 +37,7 @@ from tuner.search.objective import LapObjective
 from tuner.search.space import SearchSpace
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
+from twin.errors import TwinError
 
 HELD_OUT = 20
 
@@ -113,14 +115,31 @@ def robust_before(step_s: float, envelope: Envelope) -> dict:
 
 
 def steps(text: str) -> list[float]:
-    """--before-steps: comma-separated physics steps [s], each > 0."""
+    """--before-steps: comma-separated physics steps [s], each one a whole fraction of the control period."""
     try:
         out = [float(v) for v in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a comma-separated list of steps in seconds: {text!r}") from None
-    if not out or not all(0 < v < 1 for v in out):
-        raise argparse.ArgumentTypeError(f"each step must be in (0, 1) s: {text!r}")
+    for v in out:
+        one_step(str(v))
     return out
+
+
+def one_step(text: str) -> float:
+    """--step: a physics step [s] in (0, 1) that divides the default control period (checked before any work)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a step in seconds: {text!r}") from None
+    if not 0 < v < 1:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1) s, got {text}")
+    twin = DigitalTwin()
+    twin.set("motion.timestep", v)
+    try:
+        twin.control_params()
+    except TwinError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return v
 
 
 def plain(twin: DigitalTwin, envelope: Envelope, args, robust: dict) -> dict:
@@ -142,16 +161,19 @@ def print_robust(out: dict, envelope: Envelope) -> None:
     print(f"robust preset ({len(envelope.scenarios)} scenarios × {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap), "
           f"default robot and track")
 
-    def row(name: str, r: dict) -> None:
-        print(f"  {name}: {r['wall_s']:.1f} s wall (target < 90 s), {r['cpu_s']:.1f} s CPU, {r['laps']} laps, "
+    def row(name: str, r: dict, target: str = "") -> None:
+        print(f"  {name}: {r['wall_s']:.1f} s wall{target}, {r['cpu_s']:.1f} s CPU, {r['laps']} laps, "
               f"{r['iterations']} iterations, worst lap {r['cost_s']:.4f} s")
 
-    row(f"as delivered, {robust['timestep_s'] * 1e3:g} ms step", robust)
+    row(f"as delivered, {robust['timestep_s'] * 1e3:g} ms step", robust, " (target < 90 s)")
     for c in out["robust_before"]:
         before = c["before"]
         row(f"as before (laps to the end, no racing), {before['timestep_s'] * 1e3:g} ms step", before)
         change = c["robust_nominal_lap_change"]
-        print(f"    delivered against it: {c['robust_speedup_cpu']:.2f}× CPU (target ≥ 2.5×), "
+        # issue 26's target is against its named baseline, 0.25 ms and laps to the end
+        target = (f" (target ≥ 2.5×: {'met' if c['robust_speedup_cpu'] >= 2.5 else 'not met'})"
+                  if abs(before["timestep_s"] - 0.00025) < 1e-12 else "")
+        print(f"    delivered against it: {c['robust_speedup_cpu']:.2f}× CPU{target}, "
               f"{c['robust_speedup_wall']:.2f}× wall, {c['robust_speedup_laps']:.2f}× laps; same gains: "
               f"{c['robust_same_gains']}; nominal lap {robust['held_out']['nominal_lap_time_s']:.3f} s, "
               + (f"{change * 100:+.3f} % against it (target within 0.5 %)" if change is not None
@@ -169,12 +191,10 @@ def main() -> None:
     ap.add_argument("--before-steps", type=steps, default=[0.00025, 0.001], metavar="S[,S...]",
                     help="physics steps [s] of the 'as before' baselines (default 0.00025,0.001: issue 26's named "
                          "baseline and the default step when it was filed)")
-    ap.add_argument("--step", type=float, default=None,
+    ap.add_argument("--step", type=one_step, default=None,
                     help="physics step [s] of the delivered side (default: the twin's default)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
-    if args.step is not None and not 0 < args.step < 1:
-        ap.error(f"--step: must be in (0, 1) s, got {args.step:g}")
     logging.disable(logging.WARNING)
     warnings.filterwarnings("ignore")
     twin = at_step(args.step)

@@ -407,3 +407,15 @@ def test_the_cases_of_laps_judged_in_c_alone_happen(twin):
                      run_laps(twin, laps, seed=seeds, keep_traces=False, limits=limits, deadline_s=deadline)}
     assert {(None, "lap"), ("line_lost", "line"), ("off_track", "more"), ("off_track", "cut"), ("timeout", "no"),
             ("calibration", "sensor"), ("stopped", "stopped")} <= said, said
+
+
+def test_a_step_that_does_not_divide_the_control_period_is_refused_with_one_that_does(twin):
+    """The error for a physics step that is not a whole fraction of control.dt names one that is: set, it is taken."""
+    t = DigitalTwin()
+    t.set("motion.timestep", 0.0003)  # 5 ms / 0.3 ms = 16.7 steps
+    with pytest.raises(TwinError, match="not a whole number of physics steps") as refused:
+        t.control_params()
+    suggested = float(str(refused.value).rsplit("e.g. ", 1)[1])
+    assert suggested <= 0.0003
+    t.set("motion.timestep", suggested)
+    assert round(t.control_params().dt_s / suggested) == 17  # 5 ms in 17 whole steps: taken

@@ -177,8 +177,9 @@ class DigitalTwin:
         steps = c["dt"] / timestep
         if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
             fit = c["dt"] / max(1, math.ceil(c["dt"] / timestep - 1e-9))
+            # the suggestion in full (repr): rounded to a few digits it would not divide control.dt either
             raise TwinError(f"control.dt: {c['dt']:g} s is not a whole number of physics steps ({timestep:g} s); "
-                            f"set motion.timestep to a fraction of it, e.g. {fit:.6g}")
+                            f"set motion.timestep to a fraction of it, e.g. {fit!r}")
         # the firmware's belief about its motors is its own constant (control.full_speed), not the simulated motor:
         # a robot whose real motors differ from the datasheet drives differently, as it would
         return ControlParams(

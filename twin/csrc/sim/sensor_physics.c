@@ -58,7 +58,7 @@ double lf_footprint_reflectance(const lf_texture *tex, double x, double y, doubl
 #else
 #define LF_PREFETCH(address) ((void)(address))
 #endif
-#define LF_CACHE_LINE 64 /* [bytes]; a smaller real line only leaves part of a row to the demand load */
+#define LF_CACHE_LINE 64 /* [bytes]; another real line size only makes the hint less exact */
 
 void lf_footprint_prefetch(const lf_texture *tex, double x, double y, double radius_m) {
   const double mpp = tex->metres_per_pixel;
@@ -72,10 +72,11 @@ void lf_footprint_prefetch(const lf_texture *tex, double x, double y, double rad
   r0 = r0f < 0.0 ? 0 : (int64_t)r0f;
   c1 = c1f > tex->width - 1 ? tex->width - 1 : (int64_t)c1f;
   r1 = r1f > tex->height - 1 ? tex->height - 1 : (int64_t)r1f;
-  for (r = r0; r <= r1; r++) {
+  for (r = r0; r <= r1; r++) { /* each cache line the row's texels c0..c1 lie in, once */
     const uint8_t *row = tex->data + r * tex->width * tex->nchannel;
-    for (b = c0 * tex->nchannel; b < (c1 + 1) * tex->nchannel; b += LF_CACHE_LINE) LF_PREFETCH(row + b);
-    LF_PREFETCH(row + (c1 + 1) * tex->nchannel - 1); /* the row's last byte: its line, if the stride skipped it */
+    const uintptr_t first = (uintptr_t)(row + c0 * tex->nchannel), last = (uintptr_t)(row + (c1 + 1) * tex->nchannel - 1);
+    for (b = 0; (uintptr_t)b <= last / LF_CACHE_LINE - first / LF_CACHE_LINE; b++)
+      LF_PREFETCH((const uint8_t *)(first - first % LF_CACHE_LINE + (uintptr_t)b * LF_CACHE_LINE));
   }
 }
 
