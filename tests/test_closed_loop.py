@@ -419,3 +419,9 @@ def test_a_step_that_does_not_divide_the_control_period_is_refused_with_one_that
     assert suggested <= 0.0003
     t.set("motion.timestep", suggested)
     assert round(t.control_params().dt_s / suggested) == 17  # 5 ms in 17 whole steps: taken
+
+
+def test_the_lap_says_which_physics_step_it_ran(capsys):
+    """A step set with --set shows in the lap's text, so a user sees that it was taken."""
+    assert main(["lap", "--set", "motion.timestep=0.0016666666666666668"]) == 0
+    assert "physics step 1.66667 ms" in capsys.readouterr().out

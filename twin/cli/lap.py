@@ -107,7 +107,9 @@ def run(args: argparse.Namespace) -> int:
                 f"{controller.sample_time * 1000:g} ms; {controller.actuation}s out); seed {args.seed}")
     else:
         out.say(f"gains: v_max={p['control.v_max']:g} m/s, K_B={p['control.kb']:g}, K_P={p['control.kp']:g}, "
-                f"K_I={p['control.ki']:g}, K_D={p['control.kd']:g}, Δt={p['control.dt'] * 1000:g} ms; seed {args.seed}")
+                f"K_I={p['control.ki']:g}, K_D={p['control.kd']:g}, Δt={p['control.dt'] * 1000:g} ms; "
+                + (f"physics step {p['motion.timestep'] * 1000:.6g} ms; " if "motion.timestep" in p else "")
+                + f"seed {args.seed}")
     if mcu and not board:
         out.say(f"MCU: {mcu.mcu} at {mcu.f_cpu_hz / 1e6:g} MHz ({mcu.board}): busy {mcu.busy_cycles_mean:.0f} cycles "
                 f"per tick on average, {mcu.busy_cycles_max} at most, of {mcu.period_cycles} (headroom "
