@@ -220,10 +220,9 @@ class CJudgeView:
     simulation's head: what :class:`LapJudge` decides from the same records, bit for bit (tests/test_lap_judge_c.py),
     with no trace drained into Python between chunks. For laps whose trace is not kept.
 
-    ``head()`` gives the simulation's current :class:`twin.core.native.Sim`, or None before it has one (it is
-    rewritten when the batch resets)
-    and ``record(k)`` its k-th record of the phase (still in the trace ring: the lap stops at the record that ends
-    it). A failure from outside the trace (``fail``) is kept here."""
+    ``head()`` gives the simulation's current :class:`twin.core.native.Sim` (rewritten when the batch resets), or
+    None before it has one; ``record(k)`` gives its k-th record of the phase (still in the trace ring: the lap stops
+    at the record that ends it). A failure from outside the trace (``fail``) is kept here."""
 
     keep_trace = False
     chunks: tuple = ()
