@@ -36,8 +36,9 @@ from tuner.search.gradient import DescentOptions, descend, sequential
 from tuner.search.objective import LapObjective
 from tuner.search.space import SearchSpace
 from twin.core.closed_loop import run_laps
-from twin.core.digital_twin import DigitalTwin
+from twin.core.digital_twin import DigitalTwin, check_whole_steps
 from twin.errors import TwinError
+from twin.model.partial_models import default_space
 
 HELD_OUT = 20
 
@@ -114,17 +115,6 @@ def robust_before(step_s: float, envelope: Envelope) -> dict:
     return before
 
 
-def steps(text: str) -> list[float]:
-    """--before-steps: comma-separated physics steps [s], each one a whole fraction of the control period."""
-    try:
-        out = [float(v) for v in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a comma-separated list of steps in seconds: {text!r}") from None
-    for v in out:
-        one_step(str(v))
-    return out
-
-
 def one_step(text: str) -> float:
     """--step: a physics step [s] in (0, 1) that divides the default control period (checked before any work)."""
     try:
@@ -133,27 +123,16 @@ def one_step(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a step in seconds: {text!r}") from None
     if not 0 < v < 1:
         raise argparse.ArgumentTypeError(f"must be in (0, 1) s, got {text}")
-    twin = DigitalTwin()
-    twin.set("motion.timestep", v)
     try:
-        twin.control_params()
+        check_whole_steps(default_space().get("control.dt"), v)
     except TwinError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
     return v
 
 
-def plain(twin: DigitalTwin, envelope: Envelope, args, robust: dict) -> dict:
-    """Plain tuning, batched and sequential, CMA-ES, and the plain gains' completion over the envelope."""
-    batch = tune(descend, twin)
-    seq = tune(sequential, twin)
-    glob = None if args.no_cma else cma_search(twin, args.cma_evals)
-    plain_held_out = completion(twin, batch["gains"], envelope)
-    return {
-        "batch": batch, "sequential": seq, "cma_es": glob, "plain_held_out": plain_held_out,
-        "ratio_wall_sequential_over_batch": seq["wall_s"] / batch["wall_s"],
-        "batch_over_global_lap_time": batch["cost_s"] / glob["cost_s"] if glob else None,
-        "robust_over_plain_nominal_lap": robust["held_out"]["nominal_lap_time_s"] / plain_held_out["nominal_lap_time_s"],
-    }
+def steps(text: str) -> list[float]:
+    """--before-steps: comma-separated physics steps [s], each as --step takes it."""
+    return [one_step(v) for v in text.split(",")]
 
 
 def print_robust(out: dict, envelope: Envelope) -> None:

@@ -104,17 +104,13 @@ def run_laps(
     refuse_maze(twin.track, "the twin's controller")
     laps = [Variant.of(twin, v) for v in variants]
     core.install_callback()
-    fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds, [], stop_decided)
-    # a lap the C judges and whose trace is not kept is judged in C alone: nothing to drain between chunks
-    fleet.c_only = stop_decided and not keep_traces
-    fleet.judges = [fleet.c_judge(i, limits) if fleet.c_only else LapJudge(twin.track, limits, keep_traces)
-                    for i in range(len(laps))]
+    fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds, limits, keep_traces, stop_decided)
     _refuse_long_turns(fleet, limits)
     keys = [lap.calibration_key(s) for lap, s in zip(laps, seeds)]
     turns = twin.calibrations.of(twin.rebuilds) if reuse_calibration else {}
     failed = _calibrate(fleet, keys, turns)
     fleet.cal = _start_laps(fleet, keys, turns, failed, limits, deadlines)
-    _drive(fleet, twin.track.length_m, on_chunk, cut, limits)
+    _drive(fleet, twin.track.length_m, on_chunk, cut)
     return [fleet.result(i) for i in range(len(laps))]
 
 
@@ -152,24 +148,27 @@ def _batch(twin: DigitalTwin, model: mujoco.MjModel, laps: list[Variant], nthrea
 
 
 class Fleet:
-    """The laps' simulations in one batch: their userdata heads, their judges, stepping and draining them."""
+    """The laps' simulations in one batch: their userdata heads, their judges, stepping and draining them. A lap the
+    C judges (``stop_decided``) whose trace is not kept is judged in C alone (``c_only``): nothing to drain."""
 
     def __init__(self, twin: DigitalTwin, model: mujoco.MjModel, batch: mujoco.batch.Batch, laps: list[Variant],
-                 seeds: list[int], judges: list[LapJudge], stop_decided: bool = False):
-        self.twin, self.model, self.batch, self.laps, self.seeds, self.judges = twin, model, batch, laps, seeds, judges
+                 seeds: list[int], limits: LapLimits, keep_traces: bool, stop_decided: bool):
+        self.twin, self.model, self.batch, self.laps, self.seeds, self.limits = twin, model, batch, laps, seeds, limits
         self.stop_decided = stop_decided
-        self.c_only = False  # judged in C alone (CJudgeView), no trace drained
+        self.c_only = stop_decided and not keep_traces
+        self.judges = [self.c_judge(i) if self.c_only else LapJudge(twin.track, limits, keep_traces)
+                       for i in range(len(laps))]
         self.steps = [round(lap.params.dt_s / lap.physics.timestep) for lap in laps]  # physics steps per tick
         self.sims: list[core.Sim] = []
         self.consumed = np.zeros(len(laps), dtype=np.int64)  # records each judge has read
         self.cal: list[tuple] = [([], [])] * len(laps)  # each lap's calibration (min, max)
         self.results: dict[int, LapResult] = {}
 
-    def c_judge(self, i: int, limits: LapLimits) -> CJudgeView:
+    def c_judge(self, i: int) -> CJudgeView:
         """Lap i judged by the C loop alone, read from its current head and trace ring."""
         return CJudgeView(lambda: self.sims[i] if self.sims else None,
                           lambda k: core.records_view(self.batch.userdata[i])[k % self.sims[i].record_capacity],
-                          limits, self.twin.track.length_m)
+                          self.limits, self.twin.track.length_m)
 
     def result(self, i: int) -> LapResult:
         """Lap i's result, once it has ended (made once)."""
@@ -376,7 +375,7 @@ def start_judge(sim: core.Sim, length_m: float, limits: LapLimits, deadline_s: f
 
 # --- the lap
 def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None] | None,
-           cut: Callable[[list[Progress]], Iterable[int]] | None = None, limits: LapLimits = LapLimits()) -> None:
+           cut: Callable[[list[Progress]], Iterable[int]] | None = None) -> None:
     """Step the running laps chunk by chunk, judging each chunk, until every lap has ended. Laps judged in C alone,
     with no caller to hear between chunks (``on_chunk``, ``cut``), run in longer calls (``CALL_TICKS`` shared by the
     laps): a few laps run to their end in one call, the tick they are decided or at the latest the one past the
@@ -394,7 +393,7 @@ def _drive(fleet: Fleet, length_m: float, on_chunk: Callable[[float, int], None]
         groups: dict[int, list[int]] = {}
         for i in active:
             if whole:  # the ticks left until the first one past the timeout, within the call's share
-                left = math.ceil(limits.timeout_s / fleet.laps[i].params.dt_s) + 2 - fleet.sims[i].ticks
+                left = math.ceil(fleet.limits.timeout_s / fleet.laps[i].params.dt_s) + 2 - fleet.sims[i].ticks
                 ticks = max(CHUNK_TICKS, min(left, CALL_TICKS // len(active)))
             elif fleet.stop_decided:
                 ticks = CHUNK_TICKS

@@ -47,6 +47,17 @@ def _digest(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
+def check_whole_steps(dt_s: float, timestep_s: float) -> None:
+    """The control period ``control.dt`` must be a whole number of physics steps ``motion.timestep`` [s]; else a
+    TwinError names a step that is."""
+    steps = dt_s / timestep_s
+    if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
+        fit = dt_s / max(1, math.ceil(dt_s / timestep_s - 1e-9))
+        # the suggestion in full (repr): rounded to a few digits it would not divide control.dt either
+        raise TwinError(f"control.dt: {dt_s:g} s is not a whole number of physics steps ({timestep_s:g} s); "
+                        f"set motion.timestep to a fraction of it, e.g. {fit!r}")
+
+
 class DigitalTwin:
     """The integrated model of one robot on one track.
 
@@ -173,13 +184,7 @@ class DigitalTwin:
         self.model()  # the robot's geometry (info, sensor_distance) comes from the build
         v = self._all(values)
         c = self._values("control", values)
-        timestep = v["motion.timestep"]
-        steps = c["dt"] / timestep
-        if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
-            fit = c["dt"] / max(1, math.ceil(c["dt"] / timestep - 1e-9))
-            # the suggestion in full (repr): rounded to a few digits it would not divide control.dt either
-            raise TwinError(f"control.dt: {c['dt']:g} s is not a whole number of physics steps ({timestep:g} s); "
-                            f"set motion.timestep to a fraction of it, e.g. {fit!r}")
+        check_whole_steps(c["dt"], v["motion.timestep"])
         # the firmware's belief about its motors is its own constant (control.full_speed), not the simulated motor:
         # a robot whose real motors differ from the datasheet drives differently, as it would
         return ControlParams(
