@@ -153,9 +153,8 @@ double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
 
 /* `reads` readings of every sensor at this pose into s->raw, the calibration taking all but the last (Pololu's
    calibrate reads ten times per call); the light path is traced once, each reading draws its own noise in the
-   order one read after another would. Returns sensor 0's height [m]. */
-static double read_sensors(const mjModel *m, const mjData *d, lf_sim *s, int32_t reads) {
-  const double tan_half = tan(s->sensor.half_angle_rad);
+   order one read after another would. Returns sensor 0's height [m]. tan_half: as for sense. */
+static double read_sensors(const mjModel *m, const mjData *d, lf_sim *s, int32_t reads, double tan_half) {
   double reflectance[LF_MAX_SENSORS], height[LF_MAX_SENSORS];
   int32_t i, k;
   for (i = 0; i < s->nsensor; i++) sense(m, d, s, i, tan_half, reflectance + i, height + i);
@@ -167,7 +166,7 @@ static double read_sensors(const mjModel *m, const mjData *d, lf_sim *s, int32_t
 }
 
 void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
-  *height0 = read_sensors(m, d, s, 1);
+  *height0 = read_sensors(m, d, s, 1, tan(s->sensor.half_angle_rad));
 }
 
 /* Squared distance from (x, y) to segment i (vertex i to i+1, closing the loop); t: where along it [0, 1]. */
@@ -274,19 +273,20 @@ int32_t lf_ready(const mjModel *m, lf_sim *s) {
 }
 
 void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
-  double height0, mode;
+  double height0, mode, tan_half;
   if (!lf_ready(m, s)) return;
   lf_integrate_energy(m, d, s);
   if (!lf_tick_due(d, s)) return;
   mode = s->fw.mode;
+  tan_half = tan(s->sensor.half_angle_rad);
   /* a calibration call takes LF_CAL_READS readings at this tick's pose; lf_step calibrates with the last of them */
-  height0 = read_sensors(m, d, s, s->fw.mode == LF_CALIBRATE ? LF_CAL_READS : 1);
+  height0 = read_sensors(m, d, s, s->fw.mode == LF_CALIBRATE ? LF_CAL_READS : 1, tan_half);
   lf_step(&s->fw, &s->firmware, s->raw);
   d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
   d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
   s->ticks++;
   lf_write_record(m, d, s, mode, height0);
-  prefetch_next_tick(m, d, s, height0, tan(s->sensor.half_angle_rad));
+  prefetch_next_tick(m, d, s, height0, tan_half);
   if (s->judge_on && !s->stop_raised) {
     const lf_record *r = (const lf_record *)(s + 1) + (s->records_written - 1) % s->record_capacity;
     if (lf_judge_feed(&s->judge, r) != LF_LAP_RUNNING || r->time_s > s->deadline_s) {

@@ -12,19 +12,28 @@ double lf_footprint_radius(const lf_sensor_model *s, double height_m) {
  * monotonic, so such a row adds nothing). */
 #define LF_FOOTPRINT_COLUMNS 128
 
+/* The texels [c0, c1] x [r0, r1] of the square around a disc at (x, y) of radius_m, clipped to the texture; 0 when
+ * none is on it. Computed in doubles first: a position far off the texture (or NaN) must not overflow the indices. */
+static int footprint_box(const lf_texture *tex, double x, double y, double radius_m, int32_t *c0, int32_t *c1,
+                         int32_t *r0, int32_t *r1) {
+  const double mpp = tex->metres_per_pixel;
+  double c0f = floor((x - radius_m - tex->origin_x) / mpp), c1f = floor((x + radius_m - tex->origin_x) / mpp);
+  double r0f = floor(tex->height - (y + radius_m - tex->origin_y) / mpp);
+  double r1f = floor(tex->height - (y - radius_m - tex->origin_y) / mpp);
+  if (!(c1f >= 0.0 && r1f >= 0.0 && c0f < tex->width && r0f < tex->height)) return 0;
+  *c0 = c0f < 0.0 ? 0 : (int32_t)c0f;
+  *r0 = r0f < 0.0 ? 0 : (int32_t)r0f;
+  *c1 = c1f > tex->width - 1 ? tex->width - 1 : (int32_t)c1f;
+  *r1 = r1f > tex->height - 1 ? tex->height - 1 : (int32_t)r1f;
+  return 1;
+}
+
 double lf_footprint_reflectance(const lf_texture *tex, double x, double y, double radius_m) {
   const double mpp = tex->metres_per_pixel;
   const double inv_r2 = 1.0 / (radius_m * radius_m); /* a multiply per texel, not a divide */
-  int32_t c0 = (int32_t)floor((x - radius_m - tex->origin_x) / mpp);
-  int32_t c1 = (int32_t)floor((x + radius_m - tex->origin_x) / mpp);
-  int32_t r0 = (int32_t)floor(tex->height - (y + radius_m - tex->origin_y) / mpp);
-  int32_t r1 = (int32_t)floor(tex->height - (y - radius_m - tex->origin_y) / mpp);
   double sum = 0.0, weight = 0.0, dx2[LF_FOOTPRINT_COLUMNS];
-  int32_t r, c, cached;
-  if (c0 < 0) c0 = 0;
-  if (r0 < 0) r0 = 0;
-  if (c1 > tex->width - 1) c1 = tex->width - 1;
-  if (r1 > tex->height - 1) r1 = tex->height - 1;
+  int32_t c0, c1, r0, r1, r, c, cached;
+  if (!footprint_box(tex, x, y, radius_m, &c0, &c1, &r0, &r1)) c0 = r0 = 0, c1 = r1 = -1; /* no texel: the fallback */
   cached = c1 - c0 < LF_FOOTPRINT_COLUMNS;
   if (cached)
     for (c = c0; c <= c1; c++) {
@@ -61,20 +70,13 @@ double lf_footprint_reflectance(const lf_texture *tex, double x, double y, doubl
 #define LF_CACHE_LINE 64 /* [bytes]; another real line size only makes the hint less exact */
 
 void lf_footprint_prefetch(const lf_texture *tex, double x, double y, double radius_m) {
-  const double mpp = tex->metres_per_pixel;
-  double c0f = floor((x - radius_m - tex->origin_x) / mpp), c1f = floor((x + radius_m - tex->origin_x) / mpp);
-  double r0f = floor(tex->height - (y + radius_m - tex->origin_y) / mpp);
-  double r1f = floor(tex->height - (y - radius_m - tex->origin_y) / mpp);
-  int64_t c0, c1, r0, r1, r, b;
-  /* in doubles first: a position far off the texture (or NaN) must not overflow the texel indices */
-  if (!(c1f >= 0.0 && r1f >= 0.0 && c0f < tex->width && r0f < tex->height)) return;
-  c0 = c0f < 0.0 ? 0 : (int64_t)c0f;
-  r0 = r0f < 0.0 ? 0 : (int64_t)r0f;
-  c1 = c1f > tex->width - 1 ? tex->width - 1 : (int64_t)c1f;
-  r1 = r1f > tex->height - 1 ? tex->height - 1 : (int64_t)r1f;
+  int32_t c0, c1, r0, r1, r;
+  int64_t b;
+  if (!footprint_box(tex, x, y, radius_m, &c0, &c1, &r0, &r1)) return;
   for (r = r0; r <= r1; r++) { /* each cache line the row's texels c0..c1 lie in, once */
-    const uint8_t *row = tex->data + r * tex->width * tex->nchannel;
-    const uintptr_t first = (uintptr_t)(row + c0 * tex->nchannel), last = (uintptr_t)(row + (c1 + 1) * tex->nchannel - 1);
+    const uint8_t *row = tex->data + (int64_t)r * tex->width * tex->nchannel;
+    const uintptr_t first = (uintptr_t)(row + (int64_t)c0 * tex->nchannel);
+    const uintptr_t last = (uintptr_t)(row + ((int64_t)c1 + 1) * tex->nchannel - 1);
     for (b = 0; (uintptr_t)b <= last / LF_CACHE_LINE - first / LF_CACHE_LINE; b++)
       LF_PREFETCH((const uint8_t *)(first - first % LF_CACHE_LINE + (uintptr_t)b * LF_CACHE_LINE));
   }
