@@ -34,6 +34,7 @@ from twin.core.lap import COL
 from twin.model import control as ref
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
+from twin.model.timing import applied_voltages
 
 
 class BatchCallTimer:
@@ -75,14 +76,19 @@ def closed_loop(twin: DigitalTwin, keep_traces: bool) -> tuple[float, object, fl
 
 
 def voltages(twin: DigitalTwin, lap) -> tuple[np.ndarray, np.ndarray]:
-    """The motor voltages the closed loop applied at every physics step: calibration turn, then the lap."""
+    """The motor voltages the closed loop applied at every physics step: calibration turn (its commands at each tick,
+    for the cost: the ceiling replays each phase from the start line, and only the lap's path is compared), then the
+    lap."""
     p, model = twin.control_params(), twin.model()
     k = round(p.dt_s / model.opt.timestep)
     supply = twin.space.get("motor.supply_voltage")
     n_cal = ref.calibration_ticks(p) + 2
     turn = np.array([ref.calibration_direction(p, t) * p.cal_duty * supply for t in range(n_cal)])
     cal = np.repeat(np.stack([-turn, turn], axis=1), k, axis=0)
-    run = np.repeat(lap.trace.records[:, [COL["u_left_v"], COL["u_right_v"]]], k, axis=0)
+    records = lap.trace.records  # the lap's: the duties each tick commanded, applied as the robot's timing says
+    run = applied_voltages(records[:, COL["time_s"]], records[:, [COL["u_left_v"], COL["u_right_v"]]] / supply,
+                           lap.trace.raw_us.max(axis=1), twin.timing(), supply, model.opt.timestep,
+                           len(records) * k)
     return cal, run
 
 

@@ -124,3 +124,14 @@ class NoiseSource:
         for _ in range(4):
             total += float(self.next_u64() >> 11) * (1.0 / 9007199254740992.0)
         return (total - 2.0) * 1.7320508075688772
+
+    @staticmethod
+    def phase_base(seed: int, mode: int) -> int:
+        """The state a phase's readings draw from (reference of lf_noise_base)."""
+        return NoiseSource((seed ^ ((mode & 0xFFFFFFFF) * 0xD1B54A32D192ED03)) & MASK64).next_u64()
+
+    @staticmethod
+    def reading(base: int, read: int, sensor: int) -> float:
+        """The noise of ``sensor``'s ``read``-th reading of a phase (reference of lf_reading_noise)."""
+        key = NoiseSource(((read << 8) | (sensor & 0xFF)) & MASK64).next_u64()
+        return NoiseSource(base ^ key).noise()

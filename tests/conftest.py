@@ -1,5 +1,5 @@
-"""Shared fixtures: a cache folder per test session, the root logger restored after each test, and a
-third-party-style URDF package."""
+"""Shared fixtures: a cache folder per test session, the root logger restored after each test, a third-party-style
+URDF package, and the processor in the loop's tools (``pil_ready``)."""
 
 from __future__ import annotations
 
@@ -15,6 +15,23 @@ import trimesh
 @pytest.fixture(autouse=True, scope="session")
 def _cache_dir(tmp_path_factory):
     os.environ["TWIN_CACHE_DIR"] = str(tmp_path_factory.mktemp("twin-cache"))
+
+
+@pytest.fixture(scope="session")
+def pil_ready():
+    """avr-gcc and simavr's glue with the robot's firmware built, or a skip (a failure in CI, which installs both)."""
+    from twin.errors import TwinError
+    from twin.pil import firmware as fw
+
+    try:
+        from twin.pil.mcu import glue
+
+        glue()
+        fw.build("robot")
+    except TwinError as e:
+        if os.environ.get("CI"):
+            pytest.fail(f"CI installs gcc-avr, simavr and libsimavr-dev: {e}")
+        pytest.skip(str(e))
 
 
 @pytest.fixture(autouse=True)

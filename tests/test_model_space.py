@@ -32,6 +32,7 @@ def test_io_relations_are_derived_from_matching_ports():
         ("motion", "wheel_speed", "motor"),
         ("motion", "pose", "sensor"),
         ("sensor", "sensor_readings", "control"),
+        ("sensor", "sensor_readings", "timing"),  # the read lasts as long as the slowest line's reading
         ("control", "motor_voltage", "motor"),
     }
     # the loop is closed: the only input from outside is the track itself

@@ -38,6 +38,7 @@ from mjcf.world import AXLE_SITE, LINE_SENSOR, MOTORS, START_KEY, PhysicsOptions
 from twin.core import native as core
 from twin.core.calibration import range_too_small, turn_too_long
 from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
+from twin.model.timing import Timing
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
 from twin.core.lap import CJudgeView, LapJudge, LapLimits, LapResult
@@ -213,7 +214,8 @@ class Fleet:
         """Every simulation on the start line with a fresh head, uncalibrated and in the calibration phase."""
         self.batch.reset(keyframe=np.full(len(self.laps), self.model.key(START_KEY).id), stage=mujoco.mjtStage.mjSTAGE_NONE)
         rows = self.batch.userdata  # (nsim, nuserdata), live view of the state rows
-        self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seeds[i], lap.physics)
+        self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seeds[i], lap.physics,
+                           lap.timing)
                      for i, lap in enumerate(self.laps)]
 
     def step(self, ids: np.ndarray, nstep: int, rollout: bool = False) -> None:
@@ -258,11 +260,11 @@ class Fleet:
 
 
 def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: ControlParams, sensor, seed: int,
-          physics: PhysicsOptions | None = None) -> core.Sim:
+          physics: PhysicsOptions | None = None, timing: Timing | None = None) -> core.Sim:
     """Write one simulation's userdata head: where to find things in the model, and what to run.
 
     ``physics``: the lap's own battery voltage (PWM duty 1 → this voltage) and timestep; default the model's,
-    which are the twin's base values, not a batch variant's."""
+    which are the twin's base values, not a batch variant's. ``timing``: the robot's reaction (default the twin's)."""
     row[:] = 0.0
     sim = core.sim_view(row)
     sim.magic, sim.layout_version, sim.nsensor = core.MAGIC, core.LAYOUT_VERSION, params.count
@@ -285,16 +287,20 @@ def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: Con
     sim.timestep = physics.timestep
     sim.sensor = core.sensor_to_c(sensor)
     sim.firmware = core.params_to_c(params)
+    sim.timing = core.timing_to_c(timing or twin.timing())
     sim.seed = (int(seed) * SEED_SALT + 1) & SEED_MAX
-    sim.rng = sim.seed
     core.lib.lf_calibrate_reset(ctypes.byref(sim.fw), int(sensor.timeout_us))
     start_phase(sim, CALIBRATE)
     return sim
 
 
 def start_phase(sim: core.Sim, mode: int) -> None:
-    """Begin calibration or the lap at simulated time 0 (the calibration and the RNG state carry over)."""
+    """Begin calibration or the lap at simulated time 0 (the calibration carries over); the phase's readings draw
+    their noise from a base of the seed and the phase alone (lf_noise_base), as the processor in the loop's do."""
     core.lib.lf_reset(ctypes.byref(sim.fw), mode)
+    sim.rng, sim.reads = core.lib.lf_noise_base(sim.seed, mode), 0
+    sim.duty_now[:] = sim.duty_next[:] = (0.0, 0.0)  # the motors braked, as the keyframe's controls
+    sim.pending = 0
     sim.ticks = sim.records_written = 0
     sim.segment = -1  # the first tick searches the whole centre line
     sim.phase_start_time = sim.last_time = sim.energy_j = sim.offset_abs_sum_m = sim.offset_abs_max_m = 0.0
@@ -333,14 +339,14 @@ def _calibrate(fleet: Fleet, keys: list[tuple], turns: dict) -> dict[tuple, tupl
         elif s.fw.mode != IDLE:
             raise TwinError(f"lap {i}: calibration did not finish in {(calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i]} steps")
         else:
-            turns[k] = (tuple(s.fw.cal_min[: s.nsensor]), tuple(s.fw.cal_max[: s.nsensor]), int(s.rng))
+            turns[k] = (tuple(s.fw.cal_min[: s.nsensor]), tuple(s.fw.cal_max[: s.nsensor]))
     fleet.reset()  # the turn moved them: back to the start
     return failed
 
 
 def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limits: LapLimits,
                 deadlines: list[float]) -> list[tuple]:
-    """Put each lap in the run phase with the calibration (min, max and noise generator state) its turn made,
+    """Put each lap in the run phase with the calibration (min, max) its turn made,
     judged in C if decided laps stop; a lap whose turn failed or left a sensor with too small a range ends here.
     Returns (min, max) per lap."""
     cal = []
@@ -351,10 +357,9 @@ def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limi
                 judge.fail(code, detail, t, energy)
             cal.append(([], []))
             continue
-        lo, hi, rng = turns[k]
+        lo, hi = turns[k]
         for j, (a, b) in enumerate(zip(lo, hi)):
             sim.fw.cal_min[j], sim.fw.cal_max[j] = a, b
-        sim.rng = rng
         cal.append((list(lo), list(hi)))
         if why := range_too_small(fleet.twin, lap.params, lap.sensor, lo, hi, limits):
             judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)

@@ -39,6 +39,7 @@ from twin.core.lap import LapLimits
 from twin.core.lap_cache import BatchCache, CalibrationCache
 from twin.model.space import ChangeCost, ModelSpace
 from twin.model.partial_models import default_space
+from twin.model.timing import Timing
 
 log = logging.getLogger(__name__)
 
@@ -177,6 +178,11 @@ class DigitalTwin:
             )
         except SensorError as e:
             raise TwinError(str(e)) from None
+
+    def timing(self, values: Mapping[str, float] | None = None) -> Timing:
+        """The robot's timing of the twin's values, or of ``values`` (every address)."""
+        v = self._values("timing", values)
+        return Timing(release_us=v["release"], compute_us=v["compute"], pwm_counts=int(v["pwm_counts"]))
 
     def control_params(self, values: Mapping[str, float] | None = None) -> ControlParams:
         """The firmware's parameters: gains from ``control.*`` of the twin's values or of ``values`` (every

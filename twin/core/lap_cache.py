@@ -25,7 +25,7 @@ class BatchCache:
 
 
 class CalibrationCache:
-    """The calibration turns simulated on one build: {key: (min, max, noise generator state after the turn)}, so
+    """The calibration turns simulated on one build: {key: (min, max)}, so
     laps that differ only in gains turn once (bit-identical to turning again)."""
 
     def __init__(self) -> None:

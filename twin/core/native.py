@@ -27,7 +27,7 @@ from twin.core.outcomes import REFUSALS, c_names
 from twin.errors import TwinError
 
 MAGIC = 1279676025.0
-LAYOUT_VERSION = 7
+LAYOUT_VERSION = 8
 # the model sizes a head is written for, in the order of model_signature() in mujoco_glue.c
 SIGNATURE = ("nbody", "nsite", "ntex", "ntexdata", "nu", "na", "nv", "nnumericdata")
 
@@ -97,6 +97,12 @@ RAW_COLUMN = len(RECORD_FIELDS)
 CALIBRATED_COLUMN = RAW_COLUMN + MAX_SENSORS
 
 
+class TimingC(ctypes.Structure):
+    """``lf_timing``: see :class:`twin.model.timing.Timing`."""
+
+    _fields_ = [("release_us", c_double), ("compute_us", c_double), ("pwm_counts", c_double)]
+
+
 class Sim(ctypes.Structure):
     """``lf_sim``: the head of one simulation's userdata; trace records follow it."""
 
@@ -115,6 +121,8 @@ class Sim(ctypes.Structure):
         ("offset_abs_sum_m", c_double), ("offset_abs_max_m", c_double),
         ("fw", FwState), ("raw", c_uint16 * MAX_SENSORS),
         ("judge_on", c_int32), ("stop_raised", c_int32), ("deadline_s", c_double), ("judge", JudgeC),
+        ("timing", TimingC), ("duty_now", c_double * 2), ("duty_next", c_double * 2), ("apply_time_s", c_double),
+        ("pending", c_int32), ("pad", c_int32), ("reads", c_int64),
     ]
 
 
@@ -148,7 +156,7 @@ def mirrors() -> dict[str, dict[str, tuple[int, int]]]:
     out = {c: {f[0]: (getattr(cls, f[0]).offset, getattr(cls, f[0]).size) for f in cls._fields_}
            for c, cls in (("lf_sim", Sim), ("lf_params", Params), ("lf_state", FwState),
                           ("lf_sensor_model", SensorModelC), ("lf_texture", Texture), ("lf_lap_limits", LapLimitsC),
-                          ("lf_judge", JudgeC))}
+                          ("lf_judge", JudgeC), ("lf_timing", TimingC))}
     out["lf_record"] = {name: (8 * i, 8) for i, name in enumerate(RECORD_FIELDS)}
     out["lf_record"].update(raw_us=(8 * RAW_COLUMN, 8 * MAX_SENSORS), calibrated=(8 * CALIBRATED_COLUMN, 8 * MAX_SENSORS))
     return out
@@ -250,6 +258,10 @@ def _load() -> ctypes.CDLL:
     lib.lf_rng_next.restype = c_uint64
     lib.lf_noise.argtypes = [P(c_uint64)]
     lib.lf_noise.restype = c_double
+    lib.lf_noise_base.argtypes = [c_uint64, c_int32]
+    lib.lf_noise_base.restype = c_uint64
+    lib.lf_reading_noise.argtypes = [c_uint64, c_int64, c_int32]
+    lib.lf_reading_noise.restype = c_double
     lib.lf_judge_start.argtypes = [P(JudgeC), c_double, P(LapLimitsC)]
     lib.lf_judge_feed.argtypes = [P(JudgeC), P(c_double)]
     lib.lf_judge_feed.restype = c_int32
@@ -361,6 +373,11 @@ def records_since(userdata_row: np.ndarray, sim: Sim, consumed: int) -> np.ndarr
 def params_to_c(p) -> Params:
     """A :class:`twin.model.control.ControlParams` as ``lf_params``."""
     return Params(**{f[0]: getattr(p, f[0]) for f in Params._fields_})
+
+
+def timing_to_c(t) -> TimingC:
+    """A :class:`twin.model.timing.Timing` as ``lf_timing``."""
+    return TimingC(release_us=t.release_us, compute_us=t.compute_us, pwm_counts=t.pwm_counts)
 
 
 def sensor_to_c(s) -> SensorModelC:

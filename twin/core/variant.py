@@ -13,6 +13,7 @@ from line_sensor.reflectance import SensorModel
 from mjcf.world import PhysicsOptions
 from motors import MotorConstants
 from twin.model.control import ControlParams
+from twin.model.timing import Timing
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.model.space import ChangeCost
@@ -32,6 +33,7 @@ class Variant:
     sensor: SensorModel
     motor: MotorConstants
     physics: PhysicsOptions
+    timing: Timing
     field_key: tuple
 
     @classmethod
@@ -48,11 +50,11 @@ class Variant:
             raise TwinError("motor.L_M: switching between zero and non-zero rebuilds the model, so it cannot vary "
                             "between the laps of one batch")
         return cls(values, twin.control_params(values), twin.sensor_model(values), twin.motor(values),
-                   twin.physics(values), field_key(twin, values))
+                   twin.physics(values), twin.timing(values), field_key(twin, values))
 
     def calibration_key(self, seed: int) -> tuple:
         """Everything the calibration turn depends on: physics fields, sensor model, geometry and turn settings,
         the seed. Not the gains: the turn does not use them."""
         turn = dataclasses.replace(self.params, v_max=0.0, k_b=0.0, k_p=0.0, k_i=0.0, k_d=0.0, accel_max=0.0,
                                    integral_limit=0.0)
-        return self.field_key, dataclasses.astuple(self.sensor), turn, int(seed)
+        return self.field_key, dataclasses.astuple(self.sensor), turn, dataclasses.astuple(self.timing), int(seed)

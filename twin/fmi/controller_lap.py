@@ -63,7 +63,7 @@ def _readers(sim: core.Sim, data: mujoco.MjData) -> dict:
 
 
 def _calibrate(twin, model, data, params, sensor, physics, seed, judge) -> tuple | None:
-    """The firmware's calibration turn from the start line: (min, max, generator state), or None if it failed."""
+    """The firmware's calibration turn from the start line: (min, max), or None if it failed."""
     mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
     sim = setup(data.userdata, model, twin, params, sensor, seed, physics)
     steps = round(params.dt_s / physics.timestep)
@@ -77,7 +77,7 @@ def _calibrate(twin, model, data, params, sensor, physics, seed, judge) -> tuple
         return None
     if sim.fw.mode != IDLE:
         raise TwinError(f"calibration did not finish in {(calibration_ticks(params) + 2) * steps} steps")
-    return tuple(sim.fw.cal_min[: sim.nsensor]), tuple(sim.fw.cal_max[: sim.nsensor]), int(sim.rng)
+    return tuple(sim.fw.cal_min[: sim.nsensor]), tuple(sim.fw.cal_max[: sim.nsensor])
 
 
 def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int = 0, limits: LapLimits = LapLimits(),
@@ -108,12 +108,11 @@ def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int =
     cal = _calibrate(twin, model, data, params, sensor, physics, seed, judge)
     if cal is None:
         return judge.result(params.count, [], [], values)
-    lo, hi, rng = cal
+    lo, hi = cal
     mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
     sim = setup(data.userdata, model, twin, params, sensor, seed, physics)
     for j, (a, b) in enumerate(zip(lo, hi)):
         sim.fw.cal_min[j], sim.fw.cal_max[j] = a, b
-    sim.rng = rng
     if why := range_too_small(twin, params, sensor, lo, hi, limits):
         judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         return judge.result(params.count, lo, hi, values)

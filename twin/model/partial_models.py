@@ -15,6 +15,7 @@ from line_sensor.geometry import MAX_SENSORS, SensorArray
 from line_sensor.reflectance import SensorModel
 from motors import POLOLU_MP_6V_30_1
 from twin.model.control import DEFAULTS as CONTROL_DEFAULTS
+from twin.model.timing import Timing
 from twin.model.space import ChangeCost, ModelSpace, Parameter, PartialModel, Port
 
 R, F, C = ChangeCost.REBUILD, ChangeCost.MODEL_FIELD, ChangeCost.CONTROLLER
@@ -160,17 +161,37 @@ def control_model() -> PartialModel:
     )
 
 
+def timing_model() -> PartialModel:
+    t = Timing()
+    return PartialModel(
+        "timing",
+        "when the motors take the duties a control tick decides: release, the read (physics), compute",
+        inputs=(Port("sensor_readings", "µs"),),
+        parameters=(
+            Parameter("release", "µs", t.release_us, 0.0, 5000.0, C, "control tick to the QTR-RC lines' release "
+                      "(measured on the emulated ATmega328P)"),
+            Parameter("compute", "µs", t.compute_us, 0.0, 50000.0, C, "end of the sensor read to the PWM write: "
+                      "the firmware's compute time (measured on the emulated ATmega328P)"),
+            Parameter("pwm_counts", "-", t.pwm_counts, 0, 65536, C, "motor PWM period in timer counts: duties are "
+                      "whole counts, full drive one count short (3pi: 256); 0: any duty", integer=True),
+        ),
+        realised_by="twin/csrc/sim/mujoco_glue.c (decide, drive; reference: twin.model.timing)",
+    )
+
+
 INFLUENCES = (
     ("cad", "motion", "L, R, masses, inertias and d are parameters of Eqs. 4–5: the world is rebuilt"),
     ("environment", "motion", "the floor texture and its extent are part of the simulated world: rebuilt"),
     ("motor", "motion", "rotor inertia and gearbox losses add to the wheels' inertia and damping"),
     ("cad", "sensor", "S and the sensor height place the rays; R and L set the firmware's wheel geometry"),
     ("motor", "control", "no-load speed at the supply voltage maps wheel speed to PWM duty"),
+    ("timing", "motion", "the motors take each tick's duties a reaction time after the tick"),
 )
 
 
 def default_space() -> ModelSpace:
     """The model space with every partial model at its default values."""
     return ModelSpace(
-        [cad_model(), environment_model(), motion_model(), motor_model(), sensor_model(), control_model()], INFLUENCES
+        [cad_model(), environment_model(), motion_model(), motor_model(), sensor_model(), control_model(), timing_model()],
+        INFLUENCES
     )

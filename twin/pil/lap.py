@@ -61,6 +61,12 @@ class McuReport:
     overruns: int
     read_error_max_us: float  # |sensor reading the MCU timed − the physics' decay time|, lines that fell in time
     read_error_mean_us: float  # signed mean of the same: the timing's bias
+    release_mean_us: float  # the tick to the sensor lines' release (the readings' instant), mean over timed ticks
+    release_max_us: float
+    compute_mean_us: float  # the read's end (the last line's fall or the timeout) to the first PWM write
+    compute_min_us: float
+    compute_max_us: float
+    timed_ticks: int  # ticks whose reaction was timed (twin/csrc/pil/avr_timing.c)
     telemetry_lines: int
     telemetry_bad_lines: int
     telemetry_dropped_lines: int
@@ -121,11 +127,10 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
             if why := range_too_small(twin, params, sensor, cal_min, cal_max, limits):
                 judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
         if not judge.done:
-            rng = sim.rng
             sim = place_robot(model, data, twin, lap, seed)  # put back on the start line: MuJoCo's time 0
-            sim.rng = rng  # the noise stream carries on, as the C loop's does
+            sim.rng = core.lib.lf_noise_base(sim.seed, RUN)  # the lap's readings draw the noise the C loop's do
             mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
-            mcu.zero_time()
+            mcu.zero_time_at_tick(params.dt_s)  # the lap begins with a tick, as the C loop's does
             mcu.reset_stats()
             overruns_before = int.from_bytes(mcu.peek("fw_overruns", 2), "little")  # the turn's ten-read ticks overrun
             telemetry.offset = 0.0
@@ -148,9 +153,20 @@ def _report(elf: fw.ElfInfo, dt_s: float, status, overruns: int, dropped: int, t
         headroom=1.0 - int(status.busy_max) / period, ticks=int(status.busy_ticks), overruns=overruns,
         read_error_max_us=float(status.read_error_max_us),
         read_error_mean_us=float(status.read_error_sum_us / status.read_errors) if status.read_errors else 0.0,
+        **_reaction_us(status),
         telemetry_lines=telemetry.lines, telemetry_bad_lines=telemetry.bad, telemetry_dropped_lines=dropped,
         uart_bytes_lost=int(status.uart_lost),
     )
+
+
+def _reaction_us(status) -> dict[str, float | int]:
+    """The firmware's reaction times [µs] from the glue's cycle counts (0 where no tick was timed)."""
+    n = int(status.timed_ticks)
+    us = 1e6 / fw.F_CPU_HZ
+    mean = (lambda total: float(total) * us / n) if n else (lambda total: 0.0)
+    return dict(release_mean_us=mean(status.release_cycles_sum), release_max_us=float(status.release_cycles_max) * us,
+                compute_mean_us=mean(status.compute_cycles_sum), compute_min_us=float(status.compute_cycles_min) * us,
+                compute_max_us=float(status.compute_cycles_max) * us, timed_ticks=n)
 
 
 def place_robot(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: Variant, seed: int) -> core.Sim:

@@ -27,7 +27,9 @@ class McuStatus(ctypes.Structure):
 
     _fields_ = [("cycle", c_uint64), ("ticks", c_int64), ("busy_max", c_uint64), ("busy_sum", c_uint64),
                 ("busy_ticks", c_int64), ("uart_lost", c_int64), ("read_error_max_us", c_double),
-                ("read_error_sum_us", c_double), ("read_errors", c_int64), ("awake", c_uint64)]
+                ("read_error_sum_us", c_double), ("read_errors", c_int64), ("awake", c_uint64),
+                ("release_cycles_sum", c_uint64), ("release_cycles_max", c_uint64), ("compute_cycles_sum", c_uint64),
+                ("compute_cycles_max", c_uint64), ("compute_cycles_min", c_uint64), ("timed_ticks", c_int64)]
 
 
 class LcdFrame(ctypes.Structure):

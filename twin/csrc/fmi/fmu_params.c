@@ -92,6 +92,12 @@ int32_t lf_fmu_apply(lf_fmu *f, lf_sim *s) {
       m->actuator_ctrlrange[2 * s->actuator_left + 1] = m->actuator_ctrlrange[2 * s->actuator_right + 1] = v;
     } else if (what >= LF_P_SENSOR_APERTURE && what <= LF_P_SENSOR_NOISE) {
       set_sensor(s, what, v);
+    } else if (what == LF_P_TIMING_RELEASE) {
+      s->timing.release_us = v;
+    } else if (what == LF_P_TIMING_COMPUTE) {
+      s->timing.compute_us = v;
+    } else if (what == LF_P_TIMING_PWM_COUNTS) {
+      s->timing.pwm_counts = v;
     } else if (what == LF_P_LAP_TIMEOUT) {
       f->limits.timeout_s = v;
     } else {

@@ -114,7 +114,8 @@ static lf_sim *new_phase(lf_fmu *f, int32_t mode) {
   s->magic = 0.0; /* stepped by its owner: a control callback of the host leaves it alone */
   s->error = LF_OK;
   s->seed = f->seed * SEED_SALT + 1;
-  s->rng = s->seed;
+  s->rng = lf_noise_base(s->seed, mode);
+  s->reads = 0;
   lf_calibrate_reset(&s->fw, (uint16_t)(int32_t)s->sensor.timeout_us);
   lf_reset(&s->fw, mode);
   s->ticks = s->records_written = 0;
@@ -171,7 +172,6 @@ static int32_t calibrate(lf_fmu *f) {
   uint32_t ticks = lf_calibration_ticks(&f->head.firmware);
   uint16_t lo[LF_MAX_SENSORS], hi[LF_MAX_SENSORS];
   double span = 1e300;
-  uint64_t rng;
   int32_t i, n = f->head.nsensor;
   lf_sim *s;
   if ((double)ticks * f->head.firmware.dt_s > c->calibration_timeout_s) {
@@ -189,11 +189,9 @@ static int32_t calibrate(lf_fmu *f) {
   }
   memcpy(lo, s->fw.cal_min, sizeof(lo));
   memcpy(hi, s->fw.cal_max, sizeof(hi));
-  rng = s->rng;
   s = new_phase(f, LF_RUN);
   memcpy(s->fw.cal_min, lo, sizeof(lo));
   memcpy(s->fw.cal_max, hi, sizeof(hi));
-  s->rng = rng;
   for (i = 0; i < n; i++) span = fmin(span, (double)hi[i] - (double)lo[i]);
   if (span < c->min_calibration_range_us) {
     lf_judge_fail(&f->judge, LF_LAP_CALIBRATION, 0.0, 0.0);

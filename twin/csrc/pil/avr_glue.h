@@ -8,6 +8,7 @@
  *   avr_lcd.c       the 8x2 HD44780 LCD in 4-bit mode, its text captured at quiet moments
  *   avr_board.c     the rest of the board: buttons, LEDs, buzzer, ADC inputs, unmodelled peripherals, the physics
  *                   trace of any program
+ *   avr_timing.c    the twin firmware's reaction time: tick to release, the read's end to the PWM write
  *   avr_trace.c     what is read back from the twin's own firmware (its RAM each tick), the UART, the MCU's figures
  *   avr_layout.c    the layout of the structs Python mirrors (twin.pil.layout)
  * The board's wiring (Pololu 3pi Robot User's Guide, section 9, Pin Assignment Tables; libpololu-avr's
@@ -84,6 +85,10 @@ typedef struct {
   double read_error_sum_us; /* their sum (signed: MCU minus physics) */
   int64_t read_errors;      /* readings compared */
   uint64_t awake;           /* cycles awake (not in SLEEP) since reset */
+  /* the twin firmware's reaction (avr_timing.c), over the ticks timed since lf_avr_reset_stats */
+  uint64_t release_cycles_sum, release_cycles_max; /* tick to the sensor lines' release */
+  uint64_t compute_cycles_sum, compute_cycles_max, compute_cycles_min; /* the read's end to the first PWM write */
+  int64_t timed_ticks;
 } lf_avr_status;
 
 /* One screen of the LCD, taken when the program had not written to it for LCD_QUIET_S (Python: twin.pil.board). */
@@ -184,6 +189,7 @@ typedef struct lf_avr {
   uint8_t ddr_seen[3];
   uint64_t zero_cycle;                       /* MCU cycle at MuJoCo time 0 */
   uint64_t released[LF_BOARD_MAX_SENSORS];   /* cycle of each line's last release */
+  int64_t reads[LF_BOARD_MAX_SENSORS];       /* each line's releases since attach: its reading's index (its noise) */
   uint64_t pwm_written;                      /* cycle of the last motor compare write */
   uint64_t tick_cycle;                       /* cycle of the last completed tick */
   uint64_t stall_cycles;                     /* the watchdog's limit */
@@ -196,6 +202,9 @@ typedef struct lf_avr {
   /* CPU time */
   uint64_t busy, busy_tick_start;
   int64_t ticks_seen;
+  /* the reaction of the tick being timed (avr_timing.c) */
+  int32_t timing_phase;
+  uint64_t timing_tick, timing_release, timing_read_end;
   lf_avr_status status;
   lf_board board;
   /* UART */
@@ -220,6 +229,10 @@ void pil_connect_motors(lf_avr *a);  /* watch the motors' compare registers */
 void pil_motor_direction(lf_avr *a, int port, uint8_t ddr); /* a DDR write on a port other than C */
 void pil_drive_begin(lf_avr *a);     /* a physics step begins: the drive so far belongs to earlier steps */
 void pil_drive_end(lf_avr *a, uint64_t from); /* the step's mean drive since cycle from, as voltages in d->ctrl */
+/* avr_timing.c */
+void pil_connect_timing(lf_avr *a);  /* watch the control tick's interrupt */
+void pil_timing_release(lf_avr *a, double read_us); /* a sensor line released; it falls read_us later */
+void pil_timing_written(lf_avr *a);  /* a motor compare value written */
 /* avr_lcd.c */
 void pil_connect_lcd(lf_avr *a);     /* watch E, RS, R/W and the data lines */
 void pil_lcd_step(lf_avr *a);        /* a step ended: keep the screen if the program has been quiet */
@@ -247,6 +260,7 @@ int32_t lf_avr_run_until_clear(lf_avr *a, uint32_t addr, uint64_t max_cycles);
 void lf_avr_buttons(lf_avr *a, int32_t pressed);
 void lf_avr_attach(lf_avr *a, const mjModel *m, mjData *d, lf_sim *s, double stall_s);
 void lf_avr_zero_time(lf_avr *a);
+void lf_avr_zero_time_at_tick(lf_avr *a, double period_s); /* time 0 at the twin firmware's next control tick */
 int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep);
 const char *lf_avr_message(const lf_avr *a);
 int32_t lf_avr_state(const lf_avr *a, lf_state *out);

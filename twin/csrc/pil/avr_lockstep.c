@@ -23,13 +23,23 @@ void lf_avr_attach(lf_avr *a, const mjModel *m, mjData *d, lf_sim *s, double sta
   a->m = m, a->d = d, a->s = s;
   a->nsensor = s->nsensor < LF_BOARD_MAX_SENSORS ? s->nsensor : LF_BOARD_MAX_SENSORS;
   a->stall_cycles = (uint64_t)(stall_s * a->f_cpu);
-  for (i = 0; i < LF_BOARD_MAX_SENSORS; i++) a->released[i] = a->avr->cycle;
+  for (i = 0; i < LF_BOARD_MAX_SENSORS; i++) a->released[i] = a->avr->cycle, a->reads[i] = 0;
   a->pwm_written = a->tick_cycle = a->drive_since = a->avr->cycle;
   a->busy_tick_start = a->busy;
 }
 
 /* MuJoCo's time 0 is now (the robot was put on the start line). */
 void lf_avr_zero_time(lf_avr *a) { a->zero_cycle = a->avr->cycle; }
+
+/* MuJoCo's time 0 is the twin firmware's next control tick (its Timer1 compare comes every period_s), so that its lap
+ * begins with a tick as the C loop's does; until then the MCU runs with the physics held at time 0. Without a tick
+ * seen yet, time 0 is now. */
+void lf_avr_zero_time_at_tick(lf_avr *a, double period_s) {
+  uint64_t now = a->avr->cycle, period = cycles_of(a, period_s);
+  a->zero_cycle = now;
+  if (a->timing_tick && period && now > a->timing_tick)
+    a->zero_cycle = a->timing_tick + period * ((now - a->timing_tick + period - 1) / period);
+}
 
 static int stalled(lf_avr *a, const char *why) {
   snprintf(a->message, sizeof a->message, "%s", why);

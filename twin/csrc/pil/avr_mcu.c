@@ -197,6 +197,7 @@ lf_avr *lf_avr_open(const uint8_t *flash, uint32_t flash_size, const uint8_t *ee
   pil_connect_motors(a);
   pil_connect_lcd(a);
   pil_connect_board(a);
+  pil_connect_timing(a);
   for (i = 0; i < LF_BOARD_MAX_SENSORS; i++) a->refs[i].index = i;
   return a;
 }

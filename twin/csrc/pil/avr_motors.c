@@ -67,6 +67,7 @@ static void on_compare_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *pa
   (void)addr;
   (void)v;
   a->pwm_written = avr->cycle;
+  pil_timing_written(a);
   drive_update(a, 1); /* the register already holds v: simavr's own writer ran first */
 }
 

@@ -1,5 +1,5 @@
 /* The board's QTR-RC sensor lines. The firmware drives a line high, then releases it (its DDR bit cleared): the line's
- * decay time is the twin's sensor physics for that sensor at that moment (lf_read_sensor, the same code and noise
+ * decay time is the twin's sensor physics for that sensor at that moment (lf_read_sensor_at, the same code and noise
  * stream as the C callback), and a simavr cycle timer pulls the line low that many microseconds later. */
 #include <simavr/avr_ioport.h>
 #include <simavr/sim_cycle_timers.h>
@@ -43,12 +43,15 @@ static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
     if (!a->s || !kinematics_ready(a, i)) { /* no physics attached, or not yet stepped: a dark floor */
       raw_us = a->s ? a->s->sensor.timeout_us : 2500.0;
     } else {
-      double height = lf_read_sensor(a->m, a->d, a->s, i);
+      /* the physics is at the start of the step that holds this cycle: the sensor is read where it is now */
+      double ahead_s = ((double)a->avr->cycle - (double)a->zero_cycle) / a->f_cpu - a->d->time;
+      double height = lf_read_sensor_at(a->m, a->d, a->s, i, ahead_s, a->reads[i]++);
       int emitters = (reg(a, ddr_of[LF_EMITTER_PORT]) >> LF_EMITTER_PIN) & (reg(a, port_of[LF_EMITTER_PORT]) >> LF_EMITTER_PIN) & 1;
       if (i == 0) a->height0 = height;
       raw_us = emitters ? a->s->raw[i] : a->s->sensor.timeout_us; /* emitters off: no light comes back */
     }
     a->physics_us[i] = raw_us;
+    pil_timing_release(a, raw_us);
     avr_cycle_timer_register(a->avr, (avr_cycle_count_t)(raw_us * a->f_cpu / 1e6 + 0.5), line_falls, &a->refs[i]);
   }
 }

@@ -53,7 +53,8 @@ static void record_tick(lf_avr *a) {
     }
   }
   a->s->ticks++;
-  lf_write_record(a->m, a->d, a->s, mode, a->height0);
+  lf_write_record(a->m, a->d, a->s, mode, a->height0, a->d->ctrl[a->s->actuator_left],
+                  a->d->ctrl[a->s->actuator_right]); /* the step's mean drive */
 }
 
 void pil_trace_ticks(lf_avr *a) {
@@ -69,6 +70,9 @@ void lf_avr_reset_stats(lf_avr *a) {
   a->status.busy_max = a->status.busy_sum = 0;
   a->status.busy_ticks = a->status.read_errors = 0;
   a->status.read_error_max_us = a->status.read_error_sum_us = 0.0;
+  a->status.release_cycles_sum = a->status.release_cycles_max = 0;
+  a->status.compute_cycles_sum = a->status.compute_cycles_max = a->status.compute_cycles_min = 0;
+  a->status.timed_ticks = 0;
 }
 
 void lf_avr_status_of(const lf_avr *a, lf_avr_status *status) {

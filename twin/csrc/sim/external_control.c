@@ -13,7 +13,7 @@ double lf_sense(const mjModel *m, const mjData *d, lf_sim *s) {
 void lf_sense_record(const mjModel *m, const mjData *d, lf_sim *s, double height0) {
   s->ticks++;
   if (s->fw.tick < LF_TICKS_MAX) s->fw.tick++;
-  lf_write_record(m, d, s, s->fw.mode, height0);
+  lf_write_record(m, d, s, s->fw.mode, height0, d->ctrl[s->actuator_left], d->ctrl[s->actuator_right]);
 }
 
 int32_t lf_external_step(const mjModel *m, mjData *d, lf_sim *s, double *height0) {

@@ -19,7 +19,11 @@ static const lf_field fields[] = {
   LF_FIELD(lf_sim, phase_start_time), LF_FIELD(lf_sim, last_time), LF_FIELD(lf_sim, energy_j),
   LF_FIELD(lf_sim, offset_abs_sum_m), LF_FIELD(lf_sim, offset_abs_max_m), LF_FIELD(lf_sim, fw), LF_FIELD(lf_sim, raw),
   LF_FIELD(lf_sim, judge_on), LF_FIELD(lf_sim, stop_raised), LF_FIELD(lf_sim, deadline_s),
-  LF_FIELD(lf_sim, judge),
+  LF_FIELD(lf_sim, judge), LF_FIELD(lf_sim, timing), LF_FIELD(lf_sim, duty_now), LF_FIELD(lf_sim, duty_next),
+  LF_FIELD(lf_sim, apply_time_s), LF_FIELD(lf_sim, pending), LF_FIELD(lf_sim, pad),
+  LF_FIELD(lf_sim, reads),
+
+  LF_FIELD(lf_timing, release_us), LF_FIELD(lf_timing, compute_us), LF_FIELD(lf_timing, pwm_counts),
 
   LF_FIELD(lf_lap_limits, max_cross_track_m), LF_FIELD(lf_lap_limits, max_progress_jump_m),
   LF_FIELD(lf_lap_limits, max_line_lost_s), LF_FIELD(lf_lap_limits, timeout_s),

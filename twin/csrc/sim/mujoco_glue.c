@@ -98,40 +98,49 @@ static lf_texture texture_of(const mjModel *m, const lf_sim *s) {
   return tex;
 }
 
+/* Where sensor i's site will be ahead_s seconds from now if its body moves as it moves now [m] (MuJoCo's cvel: the
+ * body's angular and linear velocity at its tree's centre of mass, world frame; valid from mj_step1 or the control
+ * callback on). */
+static void site_ahead(const mjModel *m, const mjData *d, const lf_sim *s, int32_t i, double ahead_s, mjtNum *out) {
+  const mjtNum *w = d->cvel + 6 * s->sensor_body, *v = w + 3;
+  const mjtNum *com = d->subtree_com + 3 * m->body_rootid[s->sensor_body];
+  const mjtNum *p = d->site_xpos + 3 * s->sensor_site[i];
+  double rx = p[0] - com[0], ry = p[1] - com[1], rz = p[2] - com[2];
+  out[0] = p[0] + (v[0] + w[1] * rz - w[2] * ry) * ahead_s; /* v + w x r */
+  out[1] = p[1] + (v[1] + w[2] * rx - w[0] * rz) * ahead_s;
+  out[2] = p[2] + (v[2] + w[0] * ry - w[1] * rx) * ahead_s;
+}
+
 /* Prefetch the texels each sensor's footprint will read at the next tick, where the sensor will be if it moves as it
- * moves now (MuJoCo's cvel: the body's angular and linear velocity at its tree's centre of mass, world frame), with a
- * margin for what the prediction misses. Only a hint to the cache (a prefetch reads nothing and never faults), so no
- * result depends on it; it takes the footprint's waits on main memory off the tick (perf: lf_footprint_reflectance
- * 4.9 % of a lap's samples before, 3.1 % after, plus 0.8 % for the prefetch). */
+ * moves now, with a margin for what the prediction misses. Only a hint to the cache (a prefetch reads nothing and
+ * never faults), so no result depends on it; it takes the footprint's waits on main memory off the tick (perf:
+ * lf_footprint_reflectance 4.9 % of a lap's samples before, 3.1 % after, plus 0.8 % for the prefetch). */
 #define LF_PREFETCH_MARGIN_M 0.001
 static void prefetch_next_tick(const mjModel *m, const mjData *d, const lf_sim *s, double height_m, double tan_half) {
   const lf_texture tex = texture_of(m, s);
-  const mjtNum *w = d->cvel + 6 * s->sensor_body, *v = w + 3;
-  const mjtNum *com = d->subtree_com + 3 * m->body_rootid[s->sensor_body];
-  const double dt = s->firmware.dt_s, radius = s->sensor.aperture_m + height_m * tan_half + LF_PREFETCH_MARGIN_M;
+  const double radius = s->sensor.aperture_m + height_m * tan_half + LF_PREFETCH_MARGIN_M;
+  mjtNum next[3];
   int32_t i;
   for (i = 0; i < s->nsensor; i++) {
-    const mjtNum *p = d->site_xpos + 3 * s->sensor_site[i];
-    double rx = p[0] - com[0], ry = p[1] - com[1], rz = p[2] - com[2];
-    double vx = v[0] + w[1] * rz - w[2] * ry, vy = v[1] + w[2] * rx - w[0] * rz; /* v + w x r */
-    lf_footprint_prefetch(&tex, p[0] + vx * dt, p[1] + vy * dt, radius);
+    site_ahead(m, d, s, i, s->firmware.dt_s, next);
+    lf_footprint_prefetch(&tex, next[0], next[1], radius);
   }
 }
 
-/* Sensor i's raw reading now (s->raw[i]), drawing its noise from s->rng; returns its height above the floor [m].
- * tan_half: tan(s->sensor.half_angle_rad), the footprint's growth with height (lf_footprint_radius), computed once a
- * tick for all sensors. */
-/* What sensor i sees at this pose (the light path only, no noise): its reflectance and its height [m] above what the
-   ray hits (0 and 0 when nothing is under it). */
-static void sense(const mjModel *m, const mjData *d, const lf_sim *s, int32_t i, double tan_half, double *reflectance,
-                  double *height) {
+/* What sensor i sees ahead_s seconds from now, its site moved as it moves now (the light path only, no noise): its
+ * reflectance and its height [m] above what the ray hits (0 and 0 when nothing is under it). tan_half:
+ * tan(s->sensor.half_angle_rad), the footprint's growth with height (lf_footprint_radius), computed once a tick. The
+ * ray keeps its direction: a sensor's axis turns only with the chassis' roll and pitch, which stay near zero. */
+static void sense(const mjModel *m, const mjData *d, const lf_sim *s, int32_t i, double ahead_s, double tan_half,
+                  double *reflectance, double *height) {
   /* the world only (groups 0-1: the floor, obstacles); the robot's own geoms (2: visual, 3: collision) never block */
   static const mjtByte groups[mjNGROUP] = {1, 1, 0, 0, 0, 0};
   const lf_texture tex = texture_of(m, s);
-  const mjtNum *origin = d->site_xpos + 3 * s->sensor_site[i];
   const mjtNum *xmat = d->site_xmat + 9 * s->sensor_site[i];
-  mjtNum dir[3], normal[3];
+  mjtNum origin[3], dir[3], normal[3];
   int geom = -1;
+  if (ahead_s > 0.0) site_ahead(m, d, s, i, ahead_s, origin);
+  else memcpy(origin, d->site_xpos + 3 * s->sensor_site[i], sizeof origin);
   dir[0] = xmat[2];
   dir[1] = xmat[5];
   dir[2] = xmat[8];
@@ -144,29 +153,31 @@ static void sense(const mjModel *m, const mjData *d, const lf_sim *s, int32_t i,
     *height = 0.0; /* nothing under the sensor: no light comes back */
 }
 
-double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i) {
+double lf_read_sensor_at(const mjModel *m, const mjData *d, lf_sim *s, int32_t i, double ahead_s, int64_t read) {
   double reflectance, height;
-  sense(m, d, s, i, tan(s->sensor.half_angle_rad), &reflectance, &height);
-  s->raw[i] = lf_raw_reading(&s->sensor, reflectance, height, lf_noise(&s->rng));
+  sense(m, d, s, i, ahead_s, tan(s->sensor.half_angle_rad), &reflectance, &height);
+  s->raw[i] = lf_raw_reading(&s->sensor, reflectance, height, lf_reading_noise(s->rng, read, i));
   return height;
 }
 
 /* `reads` readings of every sensor at this pose into s->raw, the calibration taking all but the last (Pololu's
-   calibrate reads ten times per call); the light path is traced once, each reading draws its own noise in the
-   order one read after another would. Returns sensor 0's height [m]. tan_half: as for sense. */
-static double read_sensors(const mjModel *m, const mjData *d, lf_sim *s, int32_t reads, double tan_half) {
+   calibrate reads ten times per call); the light path is traced once, each reading draws its own noise. Returns sensor 0's height [m]. ahead_s, tan_half: as for sense. */
+static double read_sensors(const mjModel *m, const mjData *d, lf_sim *s, int32_t reads, double ahead_s,
+                           double tan_half) {
   double reflectance[LF_MAX_SENSORS], height[LF_MAX_SENSORS];
   int32_t i, k;
-  for (i = 0; i < s->nsensor; i++) sense(m, d, s, i, tan_half, reflectance + i, height + i);
+  for (i = 0; i < s->nsensor; i++) sense(m, d, s, i, ahead_s, tan_half, reflectance + i, height + i);
   for (k = 0; k < reads; k++) {
     if (k > 0) lf_calibrate_update(&s->fw, s->raw, s->nsensor);
-    for (i = 0; i < s->nsensor; i++) s->raw[i] = lf_raw_reading(&s->sensor, reflectance[i], height[i], lf_noise(&s->rng));
+    for (i = 0; i < s->nsensor; i++)
+      s->raw[i] = lf_raw_reading(&s->sensor, reflectance[i], height[i], lf_reading_noise(s->rng, s->reads, i));
+    s->reads++;
   }
   return height[0];
 }
 
 void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
-  *height0 = read_sensors(m, d, s, 1, tan(s->sensor.half_angle_rad));
+  *height0 = read_sensors(m, d, s, 1, 0.0, tan(s->sensor.half_angle_rad));
 }
 
 /* Squared distance from (x, y) to segment i (vertex i to i+1, closing the loop); t: where along it [0, 1]. */
@@ -219,7 +230,8 @@ void lf_locate(const double *c, int32_t n, double length, double x, double y, in
   *seg = i;
 }
 
-void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0) {
+void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0, double u_left_v,
+                     double u_right_v) {
   lf_record *r = (lf_record *)(s + 1) + (s->records_written % s->record_capacity);
   const mjtNum *q = d->xquat + 4 * s->root_body;
   int32_t i;
@@ -230,8 +242,8 @@ void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, 
   r->e_rad = s->fw.e;
   r->v_mps = s->fw.v;
   r->omega_radps = s->fw.omega;
-  r->u_left_v = d->ctrl[s->actuator_left];
-  r->u_right_v = d->ctrl[s->actuator_right];
+  r->u_left_v = u_left_v;
+  r->u_right_v = u_right_v;
   r->wheel_left_radps = d->qvel[s->dof_left];
   r->wheel_right_radps = d->qvel[s->dof_right];
   r->position = s->fw.position;
@@ -272,28 +284,82 @@ int32_t lf_ready(const mjModel *m, lf_sim *s) {
   return s->error == LF_OK; /* refused: its owner ends the lap; nothing here reads the head's indices again */
 }
 
-void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
-  double height0, mode, tan_half;
-  if (!lf_ready(m, s)) return;
-  lf_integrate_energy(m, d, s);
-  if (!lf_tick_due(d, s)) return;
-  mode = s->fw.mode;
-  tan_half = tan(s->sensor.half_angle_rad);
-  /* a calibration call takes LF_CAL_READS readings at this tick's pose; lf_step calibrates with the last of them */
-  height0 = read_sensors(m, d, s, s->fw.mode == LF_CALIBRATE ? LF_CAL_READS : 1, tan_half);
-  lf_step(&s->fw, &s->firmware, s->raw);
-  d->ctrl[s->actuator_left] = s->fw.duty_left * s->supply_voltage;
-  d->ctrl[s->actuator_right] = s->fw.duty_right * s->supply_voltage;
-  s->ticks++;
-  lf_write_record(m, d, s, mode, height0);
-  prefetch_next_tick(m, d, s, height0, tan_half);
-  if (s->judge_on && !s->stop_raised) {
-    const lf_record *r = (const lf_record *)(s + 1) + (s->records_written - 1) % s->record_capacity;
-    if (lf_judge_feed(&s->judge, r) != LF_LAP_RUNNING || r->time_s > s->deadline_s) {
-      s->stop_raised = 1; /* decided, or past its deadline: end the rollout after this step (mj_step ignores it) */
-      d->warning[LF_STOP_WARNING].number++;
+/* `reads` reads' duration [us]: each lasts until its last line has fallen (its raw reading, which the timeout caps),
+ * as the robot's QTR-RC read waits for every line; the calibration's reads before the last are the same light path
+ * with their own noise, so they are taken as long as the last. */
+static double read_time_us(const lf_sim *s, int32_t reads) {
+  double longest = 0.0;
+  int32_t i;
+  for (i = 0; i < s->nsensor; i++) longest = fmax(longest, (double)s->raw[i]);
+  return reads * longest;
+}
+
+/* A duty as the PWM drives it: the nearest whole count of the period, at most one short of it (the robot's motors.c
+ * writes OCR = 256 |duty| + 0.5, up to 255, and the timer drives OCR counts of 256). */
+static double pwm_duty(const lf_timing *t, double duty) {
+  double counts;
+  if (!(t->pwm_counts > 0.0)) return duty;
+  counts = floor(fabs(duty) * t->pwm_counts + 0.5);
+  counts = fmin(counts, t->pwm_counts - 1.0);
+  return copysign(counts / t->pwm_counts, duty);
+}
+
+/* The duties a tick decided wait until the robot would write them: the tick, the release, the read, the compute. A
+ * duty still waiting when the next tick comes is taken first (the MCU finishes a tick before it starts the next). */
+static void decide(const mjData *d, lf_sim *s, double read_us) {
+  if (s->pending) s->duty_now[0] = s->duty_next[0], s->duty_now[1] = s->duty_next[1];
+  s->duty_next[0] = pwm_duty(&s->timing, s->fw.duty_left);
+  s->duty_next[1] = pwm_duty(&s->timing, s->fw.duty_right);
+  s->apply_time_s = d->time + (s->timing.release_us + read_us + s->timing.compute_us) * 1e-6;
+  s->pending = 1;
+}
+
+/* The motors' voltages over the step beginning now: the duties in force, blended over the step in which new ones take
+ * effect (their mean over the step, as a PWM the MCU rewrites mid-step drives it: twin/csrc/pil/avr_motors.c). */
+static void drive(const mjData *d, lf_sim *s, double *u_left_v, double *u_right_v) {
+  double old_share = 0.0; /* of the step still on duty_now */
+  if (s->pending) {
+    old_share = (s->apply_time_s - d->time) / s->timestep;
+    if (old_share < 1.0) {
+      old_share = fmax(0.0, old_share);
+      *u_left_v = (old_share * s->duty_now[0] + (1.0 - old_share) * s->duty_next[0]) * s->supply_voltage;
+      *u_right_v = (old_share * s->duty_now[1] + (1.0 - old_share) * s->duty_next[1]) * s->supply_voltage;
+      s->duty_now[0] = s->duty_next[0], s->duty_now[1] = s->duty_next[1];
+      s->pending = 0;
+      return;
     }
   }
+  *u_left_v = s->duty_now[0] * s->supply_voltage;
+  *u_right_v = s->duty_now[1] * s->supply_voltage;
+}
+
+void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
+  double height0, mode, tan_half;
+  int32_t reads;
+  if (!lf_ready(m, s)) return;
+  lf_integrate_energy(m, d, s);
+  if (lf_tick_due(d, s)) {
+    mode = s->fw.mode;
+    tan_half = tan(s->sensor.half_angle_rad);
+    /* the readings are taken when the lines are released, timing.release after the tick; a calibration call takes
+       LF_CAL_READS readings at that pose, and lf_step calibrates with the last of them */
+    reads = s->fw.mode == LF_CALIBRATE ? LF_CAL_READS : 1;
+    height0 = read_sensors(m, d, s, reads, s->timing.release_us * 1e-6, tan_half);
+    lf_step(&s->fw, &s->firmware, s->raw);
+    decide(d, s, read_time_us(s, reads));
+    s->ticks++;
+    /* the record keeps the voltages the firmware commands; the motors take them when drive() says */
+    lf_write_record(m, d, s, mode, height0, s->fw.duty_left * s->supply_voltage, s->fw.duty_right * s->supply_voltage);
+    prefetch_next_tick(m, d, s, height0, tan_half);
+    if (s->judge_on && !s->stop_raised) {
+      const lf_record *r = (const lf_record *)(s + 1) + (s->records_written - 1) % s->record_capacity;
+      if (lf_judge_feed(&s->judge, r) != LF_LAP_RUNNING || r->time_s > s->deadline_s) {
+        s->stop_raised = 1; /* decided, or past its deadline: end the rollout after this step (mj_step ignores it) */
+        d->warning[LF_STOP_WARNING].number++;
+      }
+    }
+  }
+  drive(d, s, d->ctrl + s->actuator_left, d->ctrl + s->actuator_right);
 }
 
 void lf_control_callback(const mjModel *m, mjData *d) {

@@ -99,6 +99,16 @@ uint64_t lf_rng_next(uint64_t *state) {
   return z ^ (z >> 31);
 }
 
+uint64_t lf_noise_base(uint64_t seed, int32_t mode) {
+  uint64_t state = seed ^ ((uint64_t)(uint32_t)mode * 0xD1B54A32D192ED03ull);
+  return lf_rng_next(&state);
+}
+
+double lf_reading_noise(uint64_t base, int64_t read, int32_t sensor) {
+  uint64_t key = ((uint64_t)read << 8) | (uint8_t)sensor, state = base ^ lf_rng_next(&key);
+  return lf_noise(&state);
+}
+
 double lf_noise(uint64_t *state) {
   double sum = 0.0;
   int i;

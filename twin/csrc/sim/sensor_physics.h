@@ -39,5 +39,11 @@ uint64_t lf_rng_next(uint64_t *state);
 /* Zero-mean, unit-variance noise: a sum of four uniforms (Irwin-Hall), scaled; pure arithmetic, so
  * bit-identical wherever it runs. */
 double lf_noise(uint64_t *state);
+/* The generator state a phase's readings draw from (mode: enum lf_mode), from the simulation's seed. */
+uint64_t lf_noise_base(uint64_t seed, int32_t mode);
+/* The noise of sensor's read-th reading of a phase: a function of (base, read, sensor) alone, so a reading's noise
+ * does not depend on the order sensors are read in nor on what came before. The C loop and the processor in the loop
+ * (which reads each line when the firmware releases it) then draw the same noise for the same reading. */
+double lf_reading_noise(uint64_t base, int64_t read, int32_t sensor);
 
 #endif

@@ -22,9 +22,20 @@
 #include "sensor_physics.h"
 
 #define LF_MAGIC 1279676025.0  /* "LFTy": marks userdata the callback owns; other models are left alone */
-#define LF_LAYOUT_VERSION 7
+#define LF_LAYOUT_VERSION 8
 #define LF_SIGNATURE 8 /* model sizes in lf_sim.model_signature: see model_signature() in mujoco_glue.c */
 
+
+/* The robot's timing: when the duties a control tick decides reach the motors. On the robot the tick releases the
+ * QTR-RC lines (the readings' instant), the read lasts until the last line has fallen or the timeout (each line's
+ * decay is its raw reading), then the firmware computes and writes the PWM compare values, whole timer counts. Defaults are measured on
+ * the emulated MCU (twin/csrc/pil/avr_timing.c; twin.model.timing). */
+typedef struct {
+  double release_us;             /* the tick to the lines' release [us] */
+  double compute_us;             /* the read's end to the PWM write [us] */
+  double pwm_counts;             /* the PWM period in timer counts: a duty is a whole number of counts, at most one
+                                    short of the period (0: any duty) */
+} lf_timing;
 
 /* Per-simulation configuration (written by Python) and state (advanced by the callback). */
 typedef struct {
@@ -50,7 +61,8 @@ typedef struct {
   lf_params firmware;
   uint64_t seed;
   /* state */
-  uint64_t rng;
+  uint64_t rng;                  /* the phase's noise base (lf_noise_base): reading k of sensor i draws
+                                    lf_reading_noise(rng, k, i) */
   int64_t ticks;                 /* control ticks since the phase started */
   int64_t records_written;       /* total; record k lives in slot k % record_capacity */
   int64_t segment;               /* centre-line segment nearest the robot at the last tick, -1: search all */
@@ -68,6 +80,13 @@ typedef struct {
   int32_t stop_raised;            /* the callback raised the stop signal (once) */
   double deadline_s;              /* simulated time past which the lap may stop undecided [s] (inf: never) */
   lf_judge judge;
+  /* the robot's timing (lf_timing): the motors run on duty_now until apply_time_s, then on duty_next */
+  lf_timing timing;
+  double duty_now[2], duty_next[2]; /* left, right: PWM duty in [-1, 1] */
+  double apply_time_s;            /* when duty_next takes effect [s]; the next tick takes it in any case */
+  int32_t pending;                /* duty_next is waiting for apply_time_s */
+  int32_t pad;
+  int64_t reads;                  /* readings of every sensor taken in this phase (a calibration tick takes ten) */
 } lf_sim;
 
 /* One field of a mirrored struct, for Python's load-time check: "struct.field", offsetof and sizeof [bytes]. */
@@ -95,8 +114,13 @@ void lf_locate(const double *centre, int32_t n, double length, double x, double 
 #ifdef mjVERSION_HEADER
 int32_t lf_check(const mjModel *m, const lf_sim *s);         /* LF_OK, or why the head does not fit the model */
 int32_t lf_has_ray(void);                                    /* lf_set_ray has been called */
-double lf_read_sensor(const mjModel *m, const mjData *d, lf_sim *s, int32_t i);
-void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0);
+/* Sensor i's raw reading into s->raw[i] with the noise of its read-th reading, as its site will be ahead_s seconds
+ * from now if it moves as it moves now (the processor in the loop reads at a release inside the physics step);
+ * returns its height [m]. */
+double lf_read_sensor_at(const mjModel *m, const mjData *d, lf_sim *s, int32_t i, double ahead_s, int64_t read);
+/* The trace record of this tick: u_left_v, u_right_v are the motor voltages it records [V]. */
+void lf_write_record(const mjModel *m, const mjData *d, lf_sim *s, double mode, double height0, double u_left_v,
+                     double u_right_v);
 double lf_motor_power(const mjModel *m, const mjData *d, int32_t a); /* electrical power u i, >= 0 [W] */
 /* The callback's work on a head its caller owns (an FMU steps its own head between mj_step1 and mj_step2, so that
  * a callback installed by the host process never sees it): check, energy, and at a control tick sensors, firmware,
