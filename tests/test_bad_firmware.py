@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 
 import pytest
@@ -25,7 +26,10 @@ ROWS = [
 @pytest.fixture(scope="module")
 def places(tmp_path_factory):
     if not (shutil.which("avr-gcc") and shutil.which("avr-objcopy")):
-        pytest.skip("needs avr-gcc and avr-objcopy (apt-get install gcc-avr avr-libc binutils-avr)")
+        missing = " and ".join(t for t in ("avr-gcc", "avr-objcopy") if not shutil.which(t))
+        if os.environ.get("CI"):
+            pytest.fail(f"{missing} missing: CI installs gcc-avr, avr-libc and binutils-avr")
+        pytest.skip(f"needs {missing} (apt-get install gcc-avr avr-libc binutils-avr)")
     d = tmp_path_factory.mktemp("firmware")
     (d / "user.json").write_text('{"mine": true}')
     return {"dir": str(d), "missing_dir": str(d / "no" / "such"), "user.json": str(d / "user.json")}

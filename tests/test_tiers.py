@@ -40,7 +40,10 @@ QUICK: dict[str, list[str]] = {
     "twin.telemetry": ["test_link.py::test_wire_round_trip_and_checksum", "test_telemetry.py::test_telemetry_round_trip"],
     "twin.pil": ["test_pil.py::test_an_mcu_attached_before_the_physics_stepped_reads_a_dark_floor",  # needs simavr
                  "test_pil.py::test_without_simavr_the_command_says_what_to_install"],
-    "twin.pil.board": ["test_board_units.py::test_the_operator_waits_for_polling_with_the_motors_still_then_presses_what_the_lcd_asks"],
+    "twin.pil.board": ["test_board_units.py::test_the_operator_waits_for_polling_with_the_motors_still_then_presses_what_the_lcd_asks",
+                       # Pololu's own programs (../shared/pololu-examples): a failure under CI without them
+                       "test_pololu_examples.py::test_led1_blinks_red_for_a_second_then_green_for_half_a_second",
+                       "test_pololu_examples.py::test_simple_test_says_hello_plays_an_arpeggio_and_alternates_the_leds"],
     "twin.link": ["test_link.py::test_restart_ends_a_cut_off_line_and_a_second_reader_is_refused"],
     "twin.viz": ["test_closed_loop.py::test_cli_lap_json_gains_and_recording"],
     "twin.cli": ["test_cli.py::test_the_readme_flag_table_matches_help"],

@@ -128,11 +128,14 @@ class LapClock:
 def run_board_lap(twin: DigitalTwin, program: Program, seed: int = 0, limits: LapLimits = LapLimits(),
                   keep_trace: bool = True, operator: Operator | Script | None = None,
                   on_line: Callable[[float, str], None] | None = None,
-                  battery_v: float | None = None) -> tuple[LapResult, BoardReport]:
+                  battery_v: float | None = None, trimmer_v: float = TRIMMER_V) -> tuple[LapResult, BoardReport]:
     """Run ``program`` (any 3pi program, :func:`twin.pil.program.load_program`) on the board in the twin until its lap
     ends (module docstring). ``operator``: who presses the buttons (default :class:`Operator`); ``on_line(t, line)``:
     each line the program sent on its UART [s since power-up]; ``battery_v``: what ADC6 sees through the 3pi's
-    divider (default: the 3pi's four AAA cells, or the twin's supply for a robot without the 3pi's regulator)."""
+    divider (default: the 3pi's four AAA cells, or the twin's supply for a robot without the 3pi's regulator);
+    ``trimmer_v``: what ADC7 sees from the user trimmer, 0..5 V [V] (default: mid travel)."""
+    if not 0.0 <= trimmer_v <= 5.0:
+        raise TwinError(f"trimmer_v: the trimmer gives 0..5 V (AVCC), got {trimmer_v!r}")
     check_board(twin)
     lap = Variant.of(twin, {})
     model = twin.model()
@@ -146,7 +149,7 @@ def run_board_lap(twin: DigitalTwin, program: Program, seed: int = 0, limits: La
     steps = max(1, round(CHUNK_S / model.opt.timestep))
     release_at = None
     with Mcu(program) as mcu:
-        mcu.board(True, battery, TRIMMER_V, max(1, round(TRACE_PERIOD_S / model.opt.timestep)))
+        mcu.board(True, battery, trimmer_v, max(1, round(TRACE_PERIOD_S / model.opt.timestep)))
         sim = place_robot(model, data, twin, lap, seed)
         mcu.attach(model, data, sim, NO_WATCHDOG_S)  # the watchdog is the twin firmware's alone
         mcu.zero_time()
