@@ -7,17 +7,12 @@ import argparse
 import os
 
 from lf_common.files import check_output_file, json_is_ours
-from twin.viz import recording
 from twin.cli import options as o
+from twin.cli import twin_options as tw
+from twin.cli.library_values import ALIGN_ACCEPT, ALIGN_TOLERANCE
 from twin.cli.output import Output
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from twin.model.parameter_files import save_values
-from twin.telemetry.jsonl import read_telemetry
-from tuner.align.lap_time import ACCEPT, TOLERANCE, align_lap_time
-from tuner.align.trace import align_telemetry
-from tuner.history import record_alignment, record_fit
-from tuner.recording import save_alignment, save_trace_alignment
-from tuner.sensitivity import lap_time_warning
 
 HELP = "align a parameter (default motion.mu) to a measured lap time, or parameters to a recorded run"
 
@@ -25,7 +20,8 @@ HELP = "align a parameter (default motion.mu) to a measured lap time, or paramet
 def add_parser(sub) -> None:
     p = sub.add_parser("align", help=HELP, description=(
         f"With --measured-lap-time: find the value of one parameter (tyre friction μ by default) for which the "
-        f"simulated lap is within {ACCEPT * 100:g} % of the measured one (it aims for {TOLERANCE * 100:g} %), or say "
+        f"simulated lap is within {ALIGN_ACCEPT * 100:g} % of the measured one (it aims for "
+        f"{ALIGN_TOLERANCE * 100:g} %), or say "
         "that none does. With --telemetry: fit parameters so the twin reproduces a recorded run's encoder traces and "
         "lap time: for each parameter the values that fit as well as the best fit, and a 95 % interval only where the "
         "run identifies it. Exit status 1 when the measurement is not explained or a parameter is not identifiable."))
@@ -51,17 +47,27 @@ def run(args: argparse.Namespace) -> int:
         raise TwinError("align: give either --measured-lap-time SECONDS or --telemetry FILE.jsonl")
     if args.out:
         check_output_file(args.out, json_is_ours, "parameter file")
+    with loading():
+        from twin.viz import recording
+
     recording.check_targets(args.save, args.view)
     o.check_db(args.db)
     return _telemetry(args) if args.telemetry is not None else _lap_time(args)
 
 
 def _lap_time(args: argparse.Namespace) -> int:
+    with loading():
+        from tuner.align.lap_time import ACCEPT, align_lap_time
+        from tuner.history import record_alignment
+        from tuner.recording import save_alignment
+        from tuner.sensitivity import lap_time_warning
+        from twin.model.parameter_files import save_values
+
     out = Output(args.json)
     parameters = args.param or ["motion.mu"]
     if len(parameters) != 1:
         raise TwinError("--measured-lap-time aligns one parameter: one lap time cannot fix several")
-    twin = o.twin_from_args(args)
+    twin = tw.twin_from_args(args)
     address = parameters[0]
     bounds = o.parse_bounds(args.bounds, parameters).get(address)
     before = twin.space.get(address)
@@ -90,10 +96,17 @@ def _lap_time(args: argparse.Namespace) -> int:
 
 
 def _telemetry(args: argparse.Namespace) -> int:
+    with loading():
+        from tuner.align.trace import align_telemetry
+        from tuner.history import record_fit
+        from tuner.recording import save_trace_alignment
+        from twin.model.parameter_files import save_values
+        from twin.telemetry.jsonl import read_telemetry
+
     out = Output(args.json)
     tel = read_telemetry(args.telemetry)
     # the run's own track and gains unless told otherwise: they are what the robot ran with
-    twin = o.twin_from_args(args, track=args.track or tel.header.get("track", "default"))
+    twin = tw.twin_from_args(args, track=args.track or tel.header.get("track", "default"))
     if not args.gains and tel.gains:
         fixed = o.parse_assignments(args.set)
         twin.update({a: v for a, v in tel.gains.items() if a not in fixed})

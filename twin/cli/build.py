@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 
-from mjcf.world import save_xml
 from twin.cli import options as o
+from twin.cli import twin_options as tw
 from twin.cli.output import Output
+from twin.cli.startup import loading
 
 HELP = "build the world (robot, motors, track) from the model space; summarise it or save it as MJCF"
 
@@ -22,8 +23,11 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from mjcf.world import save_xml
+
     out = Output(args.json)
-    twin = o.twin_from_args(args)
+    twin = tw.twin_from_args(args)
     model = twin.model()
     info, track = twin.info, twin.track
     summary = {

@@ -6,16 +6,12 @@ import argparse
 import time
 
 from lf_common.files import check_output_dir
-from twin.viz import recording
 from twin.cli import options as o
+from twin.cli import twin_options as tw
+from twin.cli.library_values import DESIGN_GRID
 from twin.cli.output import Output
-from twin.core.maze import refuse_maze
-from twin.model.environment import load_track
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from twin.model.partial_models import default_space
-from tuner.studies.evidence import describe
-from tuner.studies.design import DEFAULT_GRID, grid, pareto, study, trend
-from tuner.studies.report import write_report
 
 HELP = "design study: rebuild, tune and race every design of a grid over design parameters (cad.*, motor.model, …)"
 
@@ -25,7 +21,7 @@ def add_parser(sub) -> None:
         "For each design: rebuild the robot, tune the gains from the same start until convergence (or --max-iter: each "
         "design says which), run the tuned gains for --laps laps with different noise seeds. Writes a box plot, a Pareto chart, a table and per-design "
         "gains to --out-dir."))
-    default = " ".join(f"{a}={','.join(f'{v:g}' for v in vs)}" for a, vs in DEFAULT_GRID.items())
+    default = " ".join(f"{a}={','.join(f'{v:g}' for v in vs)}" for a, vs in DESIGN_GRID.items())
     p.add_argument("--grid", action="append", metavar="ADDRESS=V1,V2,...",
                    help=f"a design parameter and its values, repeatable: cad.*, motor.model (catalogue names), or any "
                    f"model-space address (default: {default})")
@@ -53,23 +49,33 @@ def _check_firmware(args: argparse.Namespace, values: dict) -> tuple[dict, bool]
     """What ``--firmware`` adds to the study's base (nothing for the C loop), checked on the base design before any
     work, and whether it is a 3pi program other than the twin's own firmware (then the designs start from the 3pi:
     the values given with --set win)."""
-    program, _ = o.program_from_args(args)  # a bad file, or an --operator script without a 3pi program: one line now
+    program, _ = tw.program_from_args(args)  # a bad file, or an --operator script without a 3pi program: one line now
     if args.firmware == "c":
         return {}, False
-    from twin.core.digital_twin import DigitalTwin
-    from twin.model.motor_setup import MOTOR_MODEL
-    from twin.model.robots import THREE_PI
+    with loading():
+        from twin.core.digital_twin import DigitalTwin
+        from twin.model.motor_setup import MOTOR_MODEL
+        from twin.model.robots import THREE_PI
 
     foreign = program is not None and not program.traced
     if foreign:
         values.update({**THREE_PI.values, MOTOR_MODEL: THREE_PI.motor_model, **values})
     twin = DigitalTwin(track=args.track, track_metres_per_pixel=args.metres_per_pixel)
     twin.update({a: v for a, v in values.items() if a not in o.CATEGORICAL})
-    o.check_program_runs(twin, program)
+    tw.check_program_runs(twin, program)
     return {"firmware": args.firmware if program is None else program.path, "operator": args.operator}, foreign
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from tuner.studies.design import DEFAULT_GRID, grid, pareto, study, trend
+        from tuner.studies.evidence import describe
+        from tuner.studies.report import write_report
+        from twin.core.maze import refuse_maze
+        from twin.model.environment import load_track
+        from twin.model.partial_models import default_space
+        from twin.viz import recording
+
     out = Output(args.json)
     check_output_dir(args.out_dir, "design study folder")  # before any work: refused now, not after the study
     recording.check_targets(args.save, args.view)
@@ -97,7 +103,8 @@ def run(args: argparse.Namespace) -> int:
         refuse_maze(track, "the twin's controller")
     base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": values, "robust": args.robust,
             **firmware}
-    from tqdm import tqdm
+    with loading():
+        from tqdm import tqdm
 
     t0 = time.perf_counter()
     bar = tqdm(total=len(designs), desc="designs", unit="design", disable=args.quiet or None)
@@ -108,7 +115,8 @@ def run(args: argparse.Namespace) -> int:
     if args.cluster:
         if firmware:
             raise TwinError("--cluster: the nodes get parameter values, not files; a study with --firmware runs locally")
-        from tuner.studies.cluster import study_on_ray
+        with loading():
+            from tuner.studies.cluster import study_on_ray
 
         results = study_on_ray(designs, base, args.laps, args.max_iter, args.cluster, on_done=on_done)
     else:

@@ -6,10 +6,11 @@ import argparse
 import dataclasses
 
 from twin.cli import options as o
+from twin.cli import twin_options as tw
+from twin.cli.library_values import DIAGNOSE_CANDIDATES
 from twin.cli.output import Output
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from twin.telemetry.jsonl import read_telemetry
-from tuner.align.diagnose import DEFAULT_CANDIDATES, default_candidates, diagnose
 
 HELP = "rank the likely causes of a lap time the twin does not reproduce (grip, battery, motor, payload)"
 
@@ -25,7 +26,7 @@ def add_parser(sub) -> None:
     p.add_argument("--candidate", action="append", metavar="ADDRESS",
                    help="a possible cause, repeatable (default: the physical parameters that move the lap time most, "
                    "from this twin's learned influences (graph --learn); without them "
-                   f"{', '.join(DEFAULT_CANDIDATES)})")
+                   f"{', '.join(DIAGNOSE_CANDIDATES)})")
     o.add_world(p, track_default=None)
     o.add_values(p)
     o.add_seed(p, 0, "the twin's noise seed")
@@ -39,9 +40,13 @@ def run(args: argparse.Namespace) -> int:
     out = Output(args.json)
     if args.measured_lap_time is None and args.telemetry is None:
         raise TwinError("diagnose: give --measured-lap-time SECONDS, --telemetry FILE.jsonl, or both")
+    with loading():
+        from tuner.align.diagnose import default_candidates, diagnose
+        from twin.telemetry.jsonl import read_telemetry
+
     tel = read_telemetry(args.telemetry) if args.telemetry else None
     track = args.track or (tel.header.get("track") if tel else None) or "default"
-    twin = o.twin_from_args(args, track=track)
+    twin = tw.twin_from_args(args, track=track)
     if tel is not None and not args.gains and tel.gains:
         fixed = o.parse_assignments(args.set)
         twin.update({a: v for a, v in tel.gains.items() if a not in fixed})

@@ -9,16 +9,19 @@ import contextlib
 import os
 import select
 import time
+from typing import TYPE_CHECKING
 
 from lf_common.errors import OutputError
 from twin.cli import options as o
+from twin.cli import twin_options as tw
+from twin.cli.library_values import COMMAND_MODES
 from twin.cli.output import Output
-from twin.link.emulator import (CommandPort, Drift, NoReader, accept, check_link_path, drain_pty, firmware_lap_records,
-                                lap_records, open_pty, pty_writer, release_link, serve_tcp, stream)
-from twin.link.robot_end import COMMAND_MODES, EepromFile, RobotEnd
-from twin.telemetry.wire import GAIN_ADDRESSES, valid_robot_id
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from twin.pil.board import load_script
+
+if TYPE_CHECKING:
+    from twin.link.emulator import CommandPort
+    from twin.link.robot_end import RobotEnd
 
 HELP = "a stand-in robot streaming wire telemetry on a pty or a TCP port"
 
@@ -86,14 +89,18 @@ def _echo_writer(f):
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from twin.link.emulator import Drift, NoReader, check_link_path, firmware_lap_records, lap_records
+        from twin.pil.board import load_script
+
     out = Output(args.json)
     if args.link:
         check_link_path(args.link)
     echo_file = _echo_file(args.echo)
     try:
-        program, script = o.program_from_args(args)
-        twin = o.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
-        args.gains_warning = o.gains_warning(args, twin)
+        program, script = tw.program_from_args(args)
+        twin = tw.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
+        args.gains_warning = tw.gains_warning(args, twin)
         twin.model()
         drifts = [Drift.parse(d, twin) for d in args.drift or ()]
         robot = _robot_end(args, twin)
@@ -103,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
             if robot is not None and args.eeprom:
                 raise TwinError("--eeprom: the firmware on the MCU keeps its gains in the MCU's own EEPROM")
             elf = None if args.firmware == "avr" else args.firmware
-            o.check_program_runs(twin, program)  # a bad program or a missing simavr fails now, not at the first reader
+            tw.check_program_runs(twin, program)  # a bad program or a missing simavr fails now, not at the first reader
             operator = (lambda: load_script(args.operator)) if script else None
             lines = firmware_lap_records(twin, elf, args.seed, args.every, args.laps, operator, drifts)
             robot = None  # its program answers (or not) for itself
@@ -123,6 +130,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _robot_end(args, twin) -> RobotEnd | None:
     """The robot's end of the command link (None for a version 1 robot)."""
+    with loading():
+        from twin.link.robot_end import EepromFile, RobotEnd
+        from twin.telemetry.wire import GAIN_ADDRESSES, valid_robot_id
+
     if args.wire == 1:
         for flag, given in (("--eeprom", args.eeprom), ("--lockstep", args.lockstep),
                             ("--commands", args.commands != "answer")):
@@ -160,10 +171,16 @@ class _Receiver:
 
 
 def _commands(args, robot: RobotEnd | None, fd: int) -> CommandPort | None:
+    with loading():
+        from twin.link.emulator import CommandPort
+
     return None if robot is None else CommandPort(_Receiver(fd), robot, args.lockstep, args.idle_timeout, args.laps)
 
 
 def _serve_tcp(args, lines, echo, out: Output, robot: RobotEnd | None) -> None:
+    with loading():
+        from twin.link.emulator import accept, serve_tcp, stream
+
     server = serve_tcp(args.tcp)
     with server:
         url = f"socket://127.0.0.1:{server.getsockname()[1]}"
@@ -184,6 +201,9 @@ def _serve_tcp(args, lines, echo, out: Output, robot: RobotEnd | None) -> None:
 
 
 def _serve_pty(args, lines, echo, out: Output, robot: RobotEnd | None) -> None:
+    with loading():
+        from twin.link.emulator import drain_pty, open_pty, pty_writer, release_link, stream
+
     master, slave, tty_path = open_pty(args.link)
     try:
         path = args.link or tty_path

@@ -9,18 +9,19 @@ import subprocess
 import tempfile
 
 from lf_common.files import output_dir
-from twin.pil import firmware as fw
 from twin.cli import options as o
+from twin.cli import twin_options as tw
+from twin.cli.library_values import FIRMWARE_BOARD, TELEMETRY_EVERY
 from twin.cli.output import Output
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from twin.pil.lap import TELEMETRY_EVERY
 
 HELP = "write the robot's firmware (ELF, flash .hex) and its parameters (EEPROM .hex) for avrdude"
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("firmware", help=HELP, description=HELP + ". The program is built from twin/csrc/firmware/avr "
-                       f"for the {fw.BOARD} (pin map: board_3pi.h); the EEPROM image holds the gains, geometry and "
+                       f"for the {FIRMWARE_BOARD} (pin map: board_3pi.h); the EEPROM image holds the gains, geometry and "
                        "sensor timeout of the robot the flags describe, the ones 'lap --firmware avr' runs with.")
     o.add_world(p)
     o.add_values(p)
@@ -33,9 +34,12 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from twin.pil import firmware as fw
+
     out = Output(args.json)
-    twin = o.twin_from_args(args)
-    warning = o.gains_warning(args, twin)  # about to be flashed into a robot: say so before it is
+    twin = tw.twin_from_args(args)
+    warning = tw.gains_warning(args, twin)  # about to be flashed into a robot: say so before it is
     image = fw.config_image(twin.control_params(), twin.sensor_model().timeout_us, args.every)
     elf = fw.build("robot")
     info = fw.check_elf(elf, need=fw.TRACE_SYMBOLS)

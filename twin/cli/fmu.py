@@ -8,9 +8,10 @@ from __future__ import annotations
 import argparse
 
 from twin.cli import options as o
+from twin.cli import twin_options as tw
+from twin.cli.library_values import FMU_CLOSED_LOOP, FMU_KINDS, FMU_PLANT
 from twin.cli.output import Output
-from twin.core.lap import LapLimits
-from twin.fmi import CLOSED_LOOP, KINDS, PLANT, export_fmu
+from twin.cli.startup import loading
 
 HELP = "export the twin as a Co-Simulation FMU (FMI 2 or 3, linux64): the plant, or the closed loop with its firmware"
 
@@ -18,8 +19,8 @@ HELP = "export the twin as a Co-Simulation FMU (FMI 2 or 3, linux64): the plant,
 def add_parser(sub) -> None:
     p = sub.add_parser("fmu", help=HELP, description=__doc__)
     o.add_out(p, "the FMU", "F.fmu", required=True)
-    p.add_argument("--kind", choices=KINDS, default=CLOSED_LOOP, help=f"{PLANT}: voltages in, the robot's state and "
-                   f"sensors out; {CLOSED_LOOP}: the firmware drives, the lap's results out")
+    p.add_argument("--kind", choices=FMU_KINDS, default=FMU_CLOSED_LOOP, help=f"{FMU_PLANT}: voltages in, the robot's "
+                   f"state and sensors out; {FMU_CLOSED_LOOP}: the firmware drives, the lap's results out")
     p.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the FMU")
     o.add_world(p)
     o.add_values(p, "a model-space parameter (see 'graph'), repeatable; the FMU's parameters start at these values")
@@ -32,9 +33,13 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from twin.core.lap import LapLimits
+        from twin.fmi import export_fmu
+
     out = Output(args.json)
-    twin = o.twin_from_args(args)
-    warning = o.gains_warning(args, twin)
+    twin = tw.twin_from_args(args)
+    warning = tw.gains_warning(args, twin)
     fmu = export_fmu(twin, args.out, args.kind, args.fmi, args.seed, LapLimits(timeout_s=args.lap_timeout))
     out.document({**fmu.summary(), "track": twin.track.name, "seed": args.seed, "gains_warning": warning})
     out.say(f"wrote {fmu.path}: {fmu.kind} FMU, FMI {fmu.fmi_version}.0 Co-Simulation for linux64, "

@@ -9,12 +9,11 @@ import sys
 from lf_common.errors import LineFollowerError
 from lf_common.files import check_output_dir
 from twin.cli import options as o
+from twin.cli import twin_options as tw
+from twin.cli.library_values import SENSITIVITY_MAX_SOBOL, SENSITIVITY_SAMPLES, SENSITIVITY_TRAJECTORIES
 from twin.cli.output import Output
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from twin.viz import recording
-from tuner.sensitivity import (check_samples, chosen_factors, compare, document, learn, store, table,
-                               write_folder)
-from tuner.sensitivity.laps import MAX_SOBOL, SAMPLES, TRAJECTORIES
 
 HELP = "print the common model space: models, ports, parameters and relations (--learn: measure them)"
 OUT_DIR = "learned_graph"
@@ -27,16 +26,16 @@ def add_parser(sub) -> None:
                        "completion, energy and cross-track error; the learned graph against the declared one (table, "
                        f"{OUT_DIR}/learned_graph.png, indices.png, influences.csv, learned_graph.json). A default "
                        "analysis is kept for this twin, where diagnose and align find it. It runs "
-                       f"{TRAJECTORIES} (k + 1) + N (k' + 2) laps for k parameters of which k' ≤ {MAX_SOBOL} matter "
-                       "(the default robot: at most 2776 laps, a few minutes on 2 cores).")
+                       f"{SENSITIVITY_TRAJECTORIES} (k + 1) + N (k' + 2) laps for k parameters of which k' ≤ "
+                       f"{SENSITIVITY_MAX_SOBOL} matter (the default robot: at most 2776 laps, a few minutes on 2 cores).")
     o.add_world(p)
     o.add_values(p)
     p.add_argument("--learn", action="store_true", help="measure the relations from laps (global sensitivity)")
     o.add_search(p, "a parameter to vary, repeatable (default: every one a batch can vary, each over its documented "
                     "physical range)")
     p.add_argument("--samples", type=o.number(8, 2**20, integer=True), metavar="N",
-                   help=f"Saltelli's base sample for the Sobol' indices, a power of two (default {SAMPLES}): N × (k + 2) "
-                        "laps for k parameters that matter")
+                   help=f"Saltelli's base sample for the Sobol' indices, a power of two (default {SENSITIVITY_SAMPLES}): "
+                        "N × (k + 2) laps for k parameters that matter")
     o.add_seed(p, 0, "the laps' noise seed and the analysis' sampling seed (same seed, bit-identical indices)")
     o.add_workers(p, "laps of each batch (threads)")
     p.add_argument("--out-dir", metavar="DIR", help=f"with --learn, write the tables and charts into this folder (new, "
@@ -54,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
                                 ("--out-dir", args.out_dir), ("--save", args.save), ("--view", args.view)) if v]
         if given:
             raise TwinError(f"{given[0]}: goes with --learn")
-        space = o.twin_from_args(args).space
+        space = tw.twin_from_args(args).space
         out.document(space.to_dict())
         if not args.json:
             out.say(space.describe())
@@ -63,7 +62,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _learn(args: argparse.Namespace, out: Output) -> int:
-    from tqdm import tqdm
+    with loading():
+        from tqdm import tqdm
+
+        from tuner.sensitivity import (check_samples, chosen_factors, compare, document, learn, store, table,
+                                       write_folder)
+        from tuner.sensitivity.laps import SAMPLES
+        from twin.viz import recording
 
     out_dir = args.out_dir or OUT_DIR
     check_output_dir(out_dir, "learned graph folder")
@@ -71,8 +76,8 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
     samples = check_samples(args.samples or SAMPLES)
     if args.bounds and not args.param:
         raise TwinError("--bounds: goes with --param (the default analysis varies each parameter over its physical range)")
-    twin = o.twin_from_args(args)
-    warning = o.gains_warning(args, twin)
+    twin = tw.twin_from_args(args)
+    warning = tw.gains_warning(args, twin)
     factors = chosen_factors(twin.space, args.param, o.parse_bounds(args.bounds, args.param)) if args.param else None
     bar = tqdm(total=0, desc="laps", unit="lap", file=sys.stderr, disable=args.quiet or None)
 

@@ -9,15 +9,12 @@ import json
 import math
 import os
 
-from lf_common.files import input_file, output_dir
-from tuner.history import History, check_db, display, rebuild_log
-from tuner.history.charts import robot_chart
-from tuner.history.report import report
-from tuner.recording import save_history
+from lf_common.files import check_output_dir, input_file, output_dir
 from twin.cli import options as o
+from twin.cli import twin_options as tw
 from twin.cli.output import Output
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from twin.viz import recording
 
 HELP = "a robot's life from the history database: laps, gain changes, trends, a forecast and advice"
 
@@ -45,6 +42,9 @@ def add_parser(sub) -> None:
 
 def _existing(url: str) -> None:
     """Reading a history must not create one: a SQLite file that is not there is bad input."""
+    with loading():
+        from tuner.history import check_db
+
     check_db(url)
     if url.startswith("sqlite:///"):
         path = url.removeprefix("sqlite:///")
@@ -61,15 +61,19 @@ def run(args: argparse.Namespace) -> int:
             raise TwinError("history --rebuild: give each telemetry log with --log FILE")
         for path in args.log:
             input_file(path, "telemetry log")
-        check_db(args.db)
         return _rebuild(args, out)
+    with loading():
+        from tuner.history import History, display  # (after the checks of the flags alone: they need none)
+        from tuner.history.charts import robot_chart
+        from tuner.history.report import report
+        from tuner.recording import save_history
+        from twin.viz import recording
+
     _existing(args.db)
     recording.check_targets(args.save, args.view)
     if args.out_dir:
-        from lf_common.files import check_output_dir
-
         check_output_dir(args.out_dir, "history folder")
-    twin = None if args.no_forecast else o.twin_from_args(args)
+    twin = None if args.no_forecast else tw.twin_from_args(args)
     history = History(args.db)
     try:
         entries = report(history, twin, args.robot_id, args.seed)
@@ -121,6 +125,10 @@ def _say(out: Output, e: dict) -> None:
 
 
 def _rebuild(args, out: Output) -> int:
+    with loading():
+        from tuner.history import History, check_db, display, rebuild_log
+
+    check_db(args.db)
     history = History(args.db)
     done = []
     try:

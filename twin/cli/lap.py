@@ -5,17 +5,16 @@ callback, or (``--firmware avr``) as the robot's ATmega328P binary in simavr, wi
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
-from mjcf.maze import Maze
-from twin.viz import recording
 from twin.cli import options as o
+from twin.cli import twin_options as tw
 from twin.cli.output import Output
-from twin.core.closed_loop import run_laps
-from twin.core.lap import LapLimits
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from twin.fmi import ControllerFmu, parse_map, run_controller_lap
-from twin.pil.board import BoardReport, Operator, run_program_lap, runnable_program
-from twin.pil.lap import run_pil_lap
+
+if TYPE_CHECKING:
+    from twin.pil.board import BoardReport
 
 HELP = "calibrate and run one closed-loop lap; print the lap time and a summary"
 
@@ -49,12 +48,21 @@ def lap_summary(result, twin, seed: int) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from mjcf.maze import Maze
+        from twin.core.closed_loop import run_laps
+        from twin.core.lap import LapLimits
+        from twin.fmi import ControllerFmu, parse_map, run_controller_lap
+        from twin.pil.board import BoardReport, Operator, run_program_lap, runnable_program
+        from twin.pil.lap import run_pil_lap
+        from twin.viz import recording
+
     out = Output(args.json)
     recording.check_targets(args.save, args.view)  # before the lap: a bad path fails now, not after
     o.check_db(args.db)
-    program, script = o.program_from_args(args)
-    twin = o.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
-    warning = o.gains_warning(args, twin)
+    program, script = tw.program_from_args(args)
+    twin = tw.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
+    warning = tw.gains_warning(args, twin)
     limits, keep = LapLimits(timeout_s=args.lap_timeout), bool(args.save or args.view)
     mcu = controller = None
     if args.map and not args.controller_fmu:
@@ -84,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
         summary["mcu"] = mcu.summary()
     if controller:
         summary["controller"] = controller.describe()
-    from tuner.history import record_lap
+    with loading():
+        from tuner.history import record_lap
 
     summary["history"] = o.keep_history(args.db, lambda h: record_lap(h, twin, result), out)
     out.document(summary)

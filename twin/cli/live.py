@@ -9,18 +9,21 @@ import contextlib
 import os
 import signal
 import time
+from typing import TYPE_CHECKING
 
 from lf_common.files import input_file
+from twin.cli import library_values as lib
 from twin.cli import options as o
+from twin.cli import twin_options as tw
 from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
+from twin.cli.startup import loading
 from twin.errors import TwinError
-from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display, read_journal
-from tuner.live import (ActOptions, Actor, LiveOptions, LiveTwin, Worker, check_state, decode_line, feed_line, replay_log,
-                        resume)
-from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, check_port, read_link
-from twin.link.reader import FSYNC_INTERVAL_S, RETRY_S
-from tuner.recording import LiveRecording
+
+if TYPE_CHECKING:
+    from tuner.history import HistoryWriter, Journal
+    from tuner.live import Actor, LiveOptions, LiveTwin
+    from twin.link import LinkStats, LogWriteError, Outbox
 
 HELP = "run the twin beside the robot: compare laps, re-align when they disagree"
 
@@ -28,7 +31,7 @@ HELP = "run the twin beside the robot: compare laps, re-align when they disagree
 def add_parser(sub) -> None:
     p = sub.add_parser("live", help=HELP, description=(
         "Reads wire telemetry from --port (a device path, a pty path, or socket://host:port), appends every "
-        f"byte received to --log as it arrives and nothing else (fsynced every {FSYNC_INTERVAL_S:g} s and after each "
+        f"byte received to --log as it arrives and nothing else (fsynced every {lib.LINK_FSYNC_INTERVAL_S:g} s and after each "
         "lap; locked against a second reader; where each connection ended is kept beside it in <log>.breaks), "
         "compares each plausible lap with the twin, and re-aligns --param in the background when the lap time differs by more than --threshold for --k-laps laps. A restart resumes from the "
         "log and its state file. Exit status 1 when the link stayed down for --retry seconds; Ctrl-C or SIGTERM stop "
@@ -48,19 +51,19 @@ def add_parser(sub) -> None:
     p.add_argument("--state", metavar="FILE", help="state file (default: <log>.state.json)")
     p.add_argument("--laps", type=o.count_type, metavar="N", help="stop after this many robot laps")
     p.add_argument("--duration", type=o.number(0.0, 10**7, lo_open=True), metavar="WALL_S", help="stop after this many wall-clock seconds")
-    p.add_argument("--retry", type=o.number(0.0, 10**6), default=RETRY_S, metavar="WALL_S",
+    p.add_argument("--retry", type=o.number(0.0, 10**6), default=lib.LINK_RETRY_S, metavar="WALL_S",
                    help="how long to keep reopening a link that is down before giving up (exit 1)")
     p.add_argument("--retry-forever", action="store_true", help="keep reopening a link that is down, never give up")
     p.add_argument("--act", action="store_true", help=(
         "act on the robot: after a re-alignment whose value the gains in force no longer finish around, re-tune, "
         "predict, send the gains (wire version 2), wait for the answer, compare the laps that follow with the "
         "prediction and roll back what did worse; one command every lap (GET reads the gains back)"))
-    p.add_argument("--act-every", type=o.count_type, default=ActOptions.every_laps, metavar="N",
+    p.add_argument("--act-every", type=o.count_type, default=lib.ACT_EVERY_LAPS, metavar="N",
                    help="at most one change of gains per N laps")
-    p.add_argument("--confirm-laps", type=o.count_type, default=ActOptions.confirm_laps, metavar="N",
+    p.add_argument("--confirm-laps", type=o.count_type, default=lib.ACT_CONFIRM_LAPS, metavar="N",
                    help="laps with new gains compared with the prediction before they are confirmed (or rolled back)")
     o.add_db(p, "the robot's life (robots, runs, laps, alignments, gain changes)")
-    p.add_argument("--ack-timeout", type=o.number(0.01, 3600.0), default=ActOptions.ack_timeout_s, metavar="WALL_S",
+    p.add_argument("--ack-timeout", type=o.number(0.01, 3600.0), default=lib.ACT_ACK_TIMEOUT_S, metavar="WALL_S",
                    help="how long to wait for the robot's answer to a command")
     o.add_json(p)
     o.add_recording(p, "the comparison, lap by lap")
@@ -78,13 +81,18 @@ def run(args: argparse.Namespace) -> int:
             raise TwinError("live --act: acting needs a robot to send to: give --port, not --replay")
         if args.db:
             raise TwinError("live --replay --db: a log goes into the history with history --rebuild --log LOG --db URL")
-    else:
-        if not args.port:
-            raise TwinError("live: give --port PATH_OR_URL (or --replay LOG)")
+    elif not args.port:
+        raise TwinError("live: give --port PATH_OR_URL (or --replay LOG)")
+    with loading():
+        from tuner.live import LiveOptions
+        from tuner.recording import LiveRecording
+        from twin.link import check_port
+
+    if not args.replay:
         check_port(args.port)  # a malformed URL is refused before the twin is built
     o.check_db(args.db)
-    twin = o.twin_from_args(args)
-    warning = o.gains_warning(args, twin)
+    twin = tw.twin_from_args(args)
+    warning = tw.gains_warning(args, twin)
     twin.model()
     parameters = args.param or ["motion.mu"]
     if len(parameters) != 1:
@@ -137,6 +145,10 @@ def _implausible(laps: list[dict]) -> list[dict]:
 
 
 def _replay(args, twin, options: LiveOptions, on_lap, out: Output) -> dict:
+    with loading():
+        from tuner.live import LiveTwin, replay_log
+        from twin.link import LinkStats
+
     stats = LinkStats()
     live = LiveTwin(twin, options, None, on_lap)
     replay_log(args.replay, live, stats, realign=True)
@@ -153,6 +165,10 @@ def _replay(args, twin, options: LiveOptions, on_lap, out: Output) -> dict:
 def _actor(args, twin, options: LiveOptions, outbox: Outbox, journal: Journal, on_action) -> Actor | None:
     if not args.act:
         return None
+    with loading():
+        from tuner.history import read_journal
+        from tuner.live import ActOptions, Actor
+
     past = [a for _, a in read_journal(journal.path)]
     known = {a["seq"]: a["gains"] for a in past if a.get("kind") == "decide" and a.get("gains")}
     sent = [a["seq"] for a in past if isinstance(a.get("seq"), int)]
@@ -205,6 +221,11 @@ def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
 def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tuple[dict, int, LogWriteError | None]:
     """Resume from the log, then read the link until --laps, --duration, Ctrl-C, SIGTERM or a log that cannot be
     written; (summary, exit code, that log error)."""
+    with loading():
+        from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display
+        from tuner.live import LiveTwin, Worker, check_state, decode_line, feed_line, resume
+        from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, read_link
+
     state = args.state or f"{args.log}.state.json"
     stats, signalled, gave_up, log_error = LinkStats(), [], None, None
     check_state(state)  # a file that is not a state of ours is refused before the log is even opened

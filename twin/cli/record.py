@@ -7,9 +7,9 @@ import argparse
 
 from lf_common.files import check_output_file, jsonl_is_ours
 from twin.cli import options as o
+from twin.cli import twin_options as tw
 from twin.cli.output import Output
-from twin.core.closed_loop import run_laps
-from twin.telemetry.jsonl import lap_lines, telemetry_header, write_telemetry
+from twin.cli.startup import loading
 
 HELP = "run one lap of a twin with hidden parameters and write it as robot telemetry (JSON Lines)"
 
@@ -29,9 +29,13 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from twin.core.closed_loop import run_laps
+        from twin.telemetry.jsonl import lap_lines, telemetry_header, write_telemetry
+
     out = Output(args.json)
     check_output_file(args.out, jsonl_is_ours, "telemetry")
-    twin = o.twin_from_args(args)
+    twin = tw.twin_from_args(args)
     lap = run_laps(twin, [{}], seed=args.seed)[0]
     path = write_telemetry(args.out, lap_lines(lap, telemetry_header(twin, args.track, args.seed), args.every))
     samples = len(lap.trace.records[:: args.every])

@@ -7,15 +7,13 @@ import argparse
 import os
 
 from lf_common.files import check_output_file, first_line_is_ours, output_dir
-from mjcf.cad import write_robot
 from mjcf.design import RobotDesign
 from mjcf.errors import MjcfError
-from mjcf.world import save_xml
 from twin.cli import options as o
+from twin.cli import twin_options as tw
 from twin.cli.guard import run_command
 from twin.cli.output import Output
-from twin.core.digital_twin import DigitalTwin
-from twin.model.partial_models import default_space
+from twin.cli.startup import loading
 
 GENERATE_HELP = "write the parametric robot's URDF and meshes into a folder"
 CONVERT_HELP = "convert a differential-drive URDF to MJCF on a track"
@@ -46,6 +44,9 @@ def add_convert(sub) -> None:
 
 
 def _design(assignments: dict) -> RobotDesign:
+    with loading():
+        from twin.model.partial_models import default_space
+
     space = default_space()
     values = {}
     for address, value in assignments.items():
@@ -59,6 +60,9 @@ def run_generate(args: argparse.Namespace) -> int:
     out = Output(args.json)
     if not args.out_dir:
         raise MjcfError("generate: give the folder to write with --out-dir DIR")
+    with loading():
+        from mjcf.cad import write_robot
+
     design = _design(o.parse_assignments(args.set))
     with output_dir(args.out_dir, "robot folder") as tmp:
         write_robot(design, tmp)
@@ -69,10 +73,14 @@ def run_generate(args: argparse.Namespace) -> int:
 
 
 def run_convert(args: argparse.Namespace) -> int:
+    with loading():
+        from mjcf.world import save_xml
+        from twin.core.digital_twin import DigitalTwin
+
     out = Output(args.json)
     check_output_file(args.out, first_line_is_ours, "MJCF file")
     # the world every other command runs, so the robot is checked as they check it (its sensor mount too)
-    twin = DigitalTwin(track=args.track, robot_urdf=args.urdf, robot_config=o.robot_config(args),
+    twin = DigitalTwin(track=args.track, robot_urdf=args.urdf, robot_config=tw.robot_config(args),
                        track_metres_per_pixel=args.metres_per_pixel)
     model = twin.model()
     info = twin.info

@@ -1,6 +1,9 @@
-"""The first instant of every ``python -m`` entry: while the libraries load (about a second: MuJoCo, SciPy,
-rerun), Ctrl-C must neither leave a traceback nor break a half-imported library, so it ends the process at once
-(nothing has been written yet) with status 130. Imports nothing but the standard library's basics."""
+"""While modules load, Ctrl-C must neither leave a traceback nor break a half-imported library, so it ends the
+process at once with status 130: in the first instant of every ``python -m`` entry, and wherever a command loads
+the libraries. The command line layer itself loads none (``--help`` and a refused flag take an instant); a command
+loads them (about 2 s of CPU: MuJoCo, SciPy, rerun, …) as it starts its work, inside :func:`loading`
+(``tests/test_architecture.py`` checks that every such import is). Imports nothing but the standard library's
+basics."""
 
 from __future__ import annotations
 
@@ -17,7 +20,9 @@ def _leave(signum, frame) -> None:
 
 @contextlib.contextmanager
 def loading():
-    """Ctrl-C ends the process at once inside this block; a failed import is one ``error:`` line, exit 2.
+    """Ctrl-C ends the process at once inside this block (nothing may be written in it, only modules loaded: a
+    KeyboardInterrupt inside an extension module's import can turn into an ImportError the library swallows, and the
+    Ctrl-C would be lost); a failed import is one ``error:`` line, exit 2.
 
     MuJoCo's OpenGL rendering is turned off unless the user chose a backend (``MUJOCO_GL``): nothing here renders
     with it (views are rerun's), and with it on, importing MuJoCo imports pyGLFW, which starts a Python child to

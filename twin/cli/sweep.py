@@ -5,15 +5,17 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import TYPE_CHECKING
 
-from twin.viz import recording
-from twin.cli import options as o
-from twin.cli.output import Output
-from twin.errors import TwinError
-from tuner.studies.sweep import (Axis, check_axes, check_program_axes, check_size, firmware_lap, grid_points, points_of,
-                                 sweep, sweep_firmware, write_sweep)
-from twin.core.lap import LapLimits
 from lf_common.files import check_output_dir
+from twin.cli import options as o
+from twin.cli import twin_options as tw
+from twin.cli.output import Output
+from twin.cli.startup import loading
+from twin.errors import TwinError
+
+if TYPE_CHECKING:
+    from tuner.studies.sweep import Axis
 
 HELP = "sensitivity sweep: lap time, completion, cross-track error and energy against one or two parameters"
 
@@ -42,6 +44,9 @@ def add_parser(sub) -> None:
 
 
 def parse_axis(text: str) -> Axis:
+    with loading():
+        from tuner.studies.sweep import Axis
+
     address, sep, spec = text.partition("=")
     parts = spec.split(":")
     if not sep or len(parts) != 3:
@@ -54,11 +59,13 @@ def parse_axis(text: str) -> Axis:
 
 
 def _sweep_on_cluster(args, twin, axes, seeds, out: Output):
-    from tqdm import tqdm
+    with loading():
+        from tqdm import tqdm
 
-    from mjcf.track import BUILTIN_SEGMENTS
-    from tuner.studies.cluster import sweep_on_ray
-    from twin.model.robots import named_robot
+        from mjcf.track import BUILTIN_SEGMENTS
+        from tuner.studies.cluster import sweep_on_ray
+        from tuner.studies.sweep import grid_points, points_of
+        from twin.model.robots import named_robot
 
     if getattr(args, "robot", None) and named_robot(args.robot) is None:
         raise TwinError("--cluster: the nodes get parameter values, not files; a --robot description cannot go with "
@@ -81,11 +88,14 @@ def _sweep_on_mcu(args, twin, program, script, axes, seeds):
     """Each lap on the emulated MCU, one after another, with a progress bar."""
     import copy
 
-    from tqdm import tqdm
+    with loading():
+        from tqdm import tqdm
 
-    from twin.pil.board import Operator
+        from tuner.studies.sweep import firmware_lap, sweep_firmware
+        from twin.core.lap import LapLimits
+        from twin.pil.board import Operator
 
-    o.check_program_runs(twin, program)
+    tw.check_program_runs(twin, program)
     operator = (lambda: copy.deepcopy(script)) if script else Operator  # a fresh operator for each lap
     lap = firmware_lap(program, operator, LapLimits(timeout_s=args.lap_timeout))
     bar = tqdm(total=math.prod(a.count for a in axes) * len(seeds), desc="sweep laps on the MCU", unit="lap",
@@ -97,6 +107,10 @@ def _sweep_on_mcu(args, twin, program, script, axes, seeds):
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from tuner.studies.sweep import check_axes, check_program_axes, check_size, sweep, write_sweep
+        from twin.viz import recording
+
     out = Output(args.json)
     check_output_dir(args.out_dir, "sweep folder")
     recording.check_targets(args.save, args.view)
@@ -105,12 +119,12 @@ def run(args: argparse.Namespace) -> int:
     check_size(axes, args.seeds, firmware=on_mcu)  # from the counts alone: refused at once, before any grid or twin
     if on_mcu and args.cluster:
         raise TwinError("--cluster: the nodes run the twin's C laps; a sweep with --firmware runs locally")
-    program, script = o.program_from_args(args)
+    program, script = tw.program_from_args(args)
     foreign = program is not None and not program.traced  # a 3pi program other than the twin's own firmware
     if foreign:
         check_program_axes(axes)
-    twin = o.twin_from_args(args, robot="3pi" if foreign else None)
-    warning = o.gains_warning(args, twin)
+    twin = tw.twin_from_args(args, robot="3pi" if foreign else None)
+    warning = tw.gains_warning(args, twin)
     check_axes(twin, axes)
     seeds = list(range(args.seed, args.seed + args.seeds))
     if on_mcu:

@@ -14,25 +14,18 @@ import argparse
 import signal
 import sys
 import time
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from lf_common.files import check_output_file, json_is_ours
-from twin.viz import recording
+from twin.cli import library_values as lib
 from twin.cli import options as o
+from twin.cli import twin_options as tw
 from twin.cli.guard import run_command
 from twin.cli.output import Output
-from twin.core.closed_loop import run_laps
-from twin.core.identity import tuned_for
-from twin.model.space import ChangeCost
-from twin.model.parameter_files import save_values
-from tuner.search.gradient import DescentOptions, descend, sequential
-from tuner.search.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk, held_out_seeds, label
-from tuner.search.objective import LapObjective
-from tuner.history import record_lap
-from tuner.recording import save_tuning
-from tuner.search.start import rescue_start
-from tuner.search.space import DEFAULT_BOUNDS, SearchSpace, TunerError, robot_bounds
+from twin.cli.startup import loading
+
+if TYPE_CHECKING:
+    from tuner.search.envelope import Envelope, Risk
 
 HELP = "tune the gains (default: v_max, K_B, K_P, K_I, K_D) by gradient descent on the lap time"
 
@@ -65,12 +58,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", action="append", metavar="ADDRESS=V1,V2,...",
                    help="judge the gains under each of these values too (repeatable: every combination)")
     p.add_argument("--seeds", type=o.count_type, metavar="N", help="noise seeds per scenario (default 1; --robust: "
-                   f"{ROBUST_SEEDS})")
+                   f"{lib.ROBUST_SEEDS})")
     p.add_argument("--risk", metavar="mean|worst|cvar:ALPHA", help="how the laps of one gain vector add up (default "
-                   f"mean; --robust: {ROBUST_RISK})")
+                   f"mean; --robust: {lib.ROBUST_RISK})")
     p.add_argument("--robust", action="store_true", help="the realistic envelope of the default robot: "
-                   + ", ".join(f"{a} in {{{', '.join(f'{v:g}' for v in vs)}}}" for a, vs in ROBUST_AXES.items())
-                   + f", {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap (see tuner.search.envelope for the sources)")
+                   + ", ".join(f"{a} in {{{', '.join(f'{v:g}' for v in vs)}}}" for a, vs in lib.ROBUST_AXES.items())
+                   + f", {lib.ROBUST_SEEDS} seeds, {lib.ROBUST_RISK} lap (see tuner.search.envelope for the sources)")
     p.add_argument("--held-out", type=o.number(0, 1000, integer=True), default=20, metavar="N",
                    help="race the final gains on N seeds never used in tuning, in every corner of the envelope")
     p.add_argument("--max-iter", type=o.count_type, default=30, metavar="N", help="iteration cap")
@@ -93,6 +86,11 @@ def add_parser(sub) -> None:
 
 def envelope_from(args: argparse.Namespace, twin) -> tuple[Envelope, Risk]:
     """The envelope and risk the flags describe: --robust's preset, overridden by --scenario/--seeds/--risk."""
+    with loading():
+        from tuner.search.envelope import ROBUST_AXES, ROBUST_RISK, ROBUST_SEEDS, Envelope, Risk
+        from tuner.search.space import TunerError
+        from twin.model.space import ChangeCost
+
     axes = dict(ROBUST_AXES) if args.robust else {}
     for address, values in o.parse_grid(args.scenario, "--scenario").items():
         axes[address] = values
@@ -109,6 +107,12 @@ def envelope_from(args: argparse.Namespace, twin) -> tuple[Envelope, Risk]:
 
 def held_out(twin, values: dict, envelope: Envelope, count: int, workers: int) -> dict | None:
     """The final values raced on ``count`` seeds never used in tuning, in every corner of the envelope: one batch."""
+    with loading():
+        import numpy as np
+
+        from tuner.search.envelope import held_out_seeds, label
+        from twin.core.closed_loop import run_laps
+
     if count == 0:
         return None
     seeds = held_out_seeds(envelope, count)
@@ -128,12 +132,27 @@ def held_out(twin, values: dict, envelope: Envelope, count: int, workers: int) -
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from tqdm import tqdm
+
+        from tuner.history import record_lap
+        from tuner.recording import save_tuning
+        from tuner.search.envelope import label
+        from tuner.search.gradient import DescentOptions, descend, sequential
+        from tuner.search.objective import LapObjective
+        from tuner.search.space import DEFAULT_BOUNDS, SearchSpace, TunerError, robot_bounds
+        from tuner.search.start import rescue_start
+        from twin.core.closed_loop import run_laps
+        from twin.core.identity import tuned_for
+        from twin.model.parameter_files import save_values
+        from twin.viz import recording
+
     out = Output(args.json)
     if args.out:
         check_output_file(args.out, json_is_ours, "parameter file")
     recording.check_targets(args.save, args.view)
     o.check_db(args.db)
-    twin = o.twin_from_args(args)
+    twin = tw.twin_from_args(args)
     searched = args.param or list(DEFAULT_BOUNDS)
     derived = {a: b for a, b in robot_bounds(twin).items() if a in searched}
     if derived != {a: b for a, b in DEFAULT_BOUNDS.items() if a in searched}:
@@ -145,8 +164,6 @@ def run(args: argparse.Namespace) -> int:
     stop = _StopRequest()
     previous = signal.signal(signal.SIGINT, stop)
     t0 = time.perf_counter()
-    from tqdm import tqdm
-
     bar = tqdm(total=args.max_iter, desc=f"tuning ({args.method})", unit="it", file=sys.stderr, disable=args.quiet or None)
     iterations = []
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import os
 
-from twin.viz import viewer
 from twin.cli import options as o
 from twin.cli.output import Output
+from twin.cli.startup import loading
 
 HELP = "open saved rerun recordings (.rrd) in the rerun viewer"
 
@@ -22,6 +22,9 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with loading():
+        from twin.viz import viewer
+
     out = Output(args.json)
     exe = viewer.open_files(args.recordings)
     out.document({"opened": [os.path.abspath(p) for p in args.recordings], "viewer": exe})
