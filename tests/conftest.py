@@ -1,5 +1,7 @@
 """Shared fixtures: a cache folder per test session, the root logger restored after each test, a third-party-style
-URDF package, and the processor in the loop's tools (``pil_ready``)."""
+URDF package, the processor in the loop's tools (``pil_ready``), and the gains ``tune`` answers today
+(``plain_gains``, ``robust_gains``: tuned once a session, so tests that need tuned gains never hold a copy that the
+tuner has moved away from)."""
 
 from __future__ import annotations
 
@@ -32,6 +34,29 @@ def pil_ready():
         if os.environ.get("CI"):
             pytest.fail(f"CI installs gcc-avr, simavr and libsimavr-dev: {e}")
         pytest.skip(str(e))
+
+
+def _tuned(folder, *flags: str) -> dict:
+    """The gains ``python -m tuner`` writes for the default robot and track with ``flags``."""
+    import json
+
+    from twin.cli.main import main
+
+    path = folder / "gains.json"
+    assert main(["tune", "-q", "-o", str(path), *flags]) == 0
+    return json.loads(path.read_text())["gains"]
+
+
+@pytest.fixture(scope="session")
+def plain_gains(tmp_path_factory) -> dict:
+    """``tune``'s answer (a few seconds)."""
+    return _tuned(tmp_path_factory.mktemp("plain"))
+
+
+@pytest.fixture(scope="session")
+def robust_gains(tmp_path_factory) -> dict:
+    """``tune --robust``'s answer (about 30 s of CPU)."""
+    return _tuned(tmp_path_factory.mktemp("robust"), "--robust")
 
 
 @pytest.fixture(autouse=True)

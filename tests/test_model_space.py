@@ -33,7 +33,8 @@ def test_io_relations_are_derived_from_matching_ports():
         ("motion", "pose", "sensor"),
         ("sensor", "sensor_readings", "control"),
         ("sensor", "sensor_readings", "timing"),  # the read lasts as long as the slowest line's reading
-        ("control", "motor_voltage", "motor"),
+        ("control", "motor_command", "timing"),  # the firmware's command reaches the motors when the robot's
+        ("timing", "motor_voltage", "motor"),    # timing says
     }
     # the loop is closed: the only input from outside is the track itself
     assert default_space().unconnected_inputs() == [("environment", "track_definition")]

@@ -147,9 +147,9 @@ def test_relations_confirmed_undeclared_negligible_and_unmeasurable():
     rel = {(r.parameter, r.output): r for r in compare(space, a)}
     # the supply feeds the motor, which feeds motion (wheel torque), which gives the pose the lap time comes from
     assert rel[("motor.supply_voltage", "lap_time_s")].status == CONFIRMED
-    # the gains reach the lap time only round the loop: control → motor → motion; no declared edge says so
+    # the gains reach the lap time only round the loop: control → timing → motor → motion; no declared edge says so
     assert rel[("control.v_max", "lap_time_s")].status == UNDECLARED
-    assert rel[("control.v_max", "lap_time_s")].why == "control → motor → motion"
+    assert rel[("control.v_max", "lap_time_s")].why == "control → timing → motor → motion"
     assert rel[("sensor.noise", "max_cross_track_m")].status == UNDECLARED  # sensor feeds control only
     assert rel[("motion.mu", "lap_time_s")].status == NEGLIGIBLE  # ST 0.01 < 0.05
     assert rel[("motion.floor_mu", "lap_time_s")].status == NEGLIGIBLE  # screened out
@@ -158,7 +158,7 @@ def test_relations_confirmed_undeclared_negligible_and_unmeasurable():
     assert ("control.kp", "lap_time_s") not in rel  # neither declared nor measured
     groups = by_status(list(rel.values()))
     assert len(groups[CONFIRMED]) == 1 and len(groups[UNDECLARED]) == 2
-    assert declared_path(space, "sensor", "lap_time_s") == "sensor → control → motor → motion"
+    assert declared_path(space, "sensor", "lap_time_s") == "sensor → timing → motor → motion"  # the read's duration
 
 
 # --- the learned influences, kept per configuration and used by diagnose and align

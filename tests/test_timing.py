@@ -83,16 +83,6 @@ def test_each_physics_step_drives_the_duties_the_robot_would_have_written():
                                                      core.RECORD_FIELDS.index("u_right_v")]])
 
 
-@pytest.fixture(scope="module")
-def plainly_tuned(tmp_path_factory) -> dict:
-    """Gains the tuner finds now for the default robot and track (tuned here, so they are today's answer)."""
-    from twin.cli.main import main
-
-    path = tmp_path_factory.mktemp("tuned") / "gains.json"
-    assert main(["tune", "-q", "-o", str(path)]) == 0
-    return json.loads(path.read_text())["gains"]
-
-
 def test_the_defaults_are_what_the_mcu_measures(pil_ready):
     from twin.pil.lap import run_pil_lap
 
@@ -105,13 +95,13 @@ def test_the_defaults_are_what_the_mcu_measures(pil_ready):
     assert report.compute_min_us < report.compute_mean_us < report.compute_max_us
 
 
-def test_the_c_loop_laps_as_the_firmware_on_the_mcu_for_tuned_gains(pil_ready, plainly_tuned):
+def test_the_c_loop_laps_as_the_firmware_on_the_mcu_for_tuned_gains(pil_ready, plain_gains):
     from twin.pil.lap import run_pil_lap
 
     twin = DigitalTwin()
-    for address, value in plainly_tuned.items():
+    for address, value in plain_gains.items():
         twin.set(address, value)
-    assert plainly_tuned["control.kp"] > 20  # aggressive gains, where the robot's reaction time matters most
+    assert plain_gains["control.kp"] > 20  # aggressive gains, where the robot's reaction time matters most
     seeds = [0, 1, 2]
     c_laps = run_laps(twin, [{}] * 3, seed=seeds, keep_traces=False)
     mcu_laps = [run_pil_lap(twin, seed=s, keep_trace=False)[0] for s in seeds]

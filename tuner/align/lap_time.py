@@ -24,8 +24,16 @@ The default search range (:func:`default_range`) is the parameter's documented p
 space declares one (tyre friction: 0.05, rubber on dusty paper or vinyl, to 2.0, soft rubber on a grippy mat),
 else a factor of ``RELATIVE_RANGE`` either side of the current value; ``bounds`` (``--bounds``) overrides it.
 
+A measured lap time is one lap: one draw of the sensors' noise. Far from a limit that hardly matters, but near the
+grip limit, where the robot slides and recovers, laps of the same robot differ by a few per cent from one noise draw
+to the next (2 % at μ 0.6 with robust gains and the robot's timing). So each value is raced on ``NOISE_SEEDS`` seeds
+(``seed``, ``seed`` + 1, …): its lap time is the median of the laps that complete (a value whose laps mostly fail
+fails), and the fastest and slowest of them are kept as its spread. The scan, the brackets and the descent follow
+the medians; the reachable lap times are the medians' intervals, and the single laps seen are reported beside them.
+
 Every lap run on the way is kept. Around each solution, the values whose laps land within ``TOLERANCE`` of the
-measurement give a range the measurement is consistent with; disjoint ranges are all reported, and the
+measurement, or whose spread of laps holds it, give a range the measurement is consistent with; disjoint ranges are
+all reported (ranges less than ``JUMP`` of the value apart are one: near a limit the noise makes t(p) jagged), and the
 value returned is the one nearest the twin's current value (the robot changed least). When a range is wide
 (lap time hardly depends on the parameter there), the result says the parameter is not identifiable from a
 lap time alone.
@@ -45,7 +53,8 @@ from twin.model.space import ChangeCost
 from tuner.search.space import TunerError
 
 SCAN_POINTS = 8
-REFINE_ROUNDS = 5  # midpoint rounds after the scan, one batch each
+NOISE_SEEDS = 3  # laps per value, on consecutive seeds: its median and spread
+REFINE_ROUNDS = 12  # midpoint rounds after the scan, one batch each: a band of 1 % of the range takes ~10
 REFINE_LAPS = 40  # at most this many refinement laps in all
 # parameters whose model-space range is their documented physical range: searched over all of it by default
 # (friction coefficients: a line follower with soft enough gains holds the track down to where its laps fail)
@@ -57,6 +66,7 @@ REL_STEP = 0.01  # finite-difference step, relative to the value
 TOLERANCE = 0.001  # aim for 0.1 %; success is within 0.5 % (ACCEPT)
 ACCEPT = 0.005
 IDENTIFIABLE_SPAN = 0.10  # a consistent range wider than this fraction of the value: not identifiable
+SLOWEST = 3.0  # a lap not done after this many times the measurement cannot explain it: it ends as a timeout
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,7 +75,8 @@ class AlignPoint:
 
     iteration: int  # 0: the scan
     value: float
-    lap_time_s: float | None
+    lap_time_s: float | None  # the median of its laps that completed (None if most of them failed)
+    spread_s: tuple[float, float] | None = None  # its fastest and slowest completed lap
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,8 +97,8 @@ class LapTimeAlignment:
     measured_lap_time_s: float
     explained: bool  # within ACCEPT of the measurement
     iterations: int
-    laps: int
-    reachable_s: tuple[float, float] | None  # fastest and slowest lap the scan found (the hull of the intervals)
+    laps: int  # laps run: values × noise seeds
+    reachable_s: tuple[float, float] | None  # fastest and slowest median the scan found (the hull of the intervals)
     consistent: tuple[float, float] | None  # the chosen solution's consistent range
     identifiable: bool  # the chosen solution's range is narrow and it is the only one
     message: str
@@ -95,6 +106,8 @@ class LapTimeAlignment:
     solutions: tuple[Solution, ...] = ()  # every disjoint range that explains the measurement
     reachable_intervals_s: tuple[tuple[float, float], ...] = ()  # the lap times it can give, as disjoint intervals
     bounds: tuple[float, float] | None = None  # the range searched
+    single_laps_s: tuple[float, float] | None = None  # fastest and slowest single lap run on the way
+    noise_seeds: int = NOISE_SEEDS  # laps per value
 
     def summary(self) -> dict:
         d = dataclasses.asdict(self)
@@ -103,17 +116,23 @@ class LapTimeAlignment:
         return d
 
 
-def _lap_times(twin: DigitalTwin, address: str, values, seed: int, nthread: int,
-               limits: LapLimits = LapLimits()) -> list[float | None]:
-    """The lap time at each value (None: the lap failed): one batch, or, for a parameter that rebuilds the robot,
-    one build and lap per value."""
+def _lap_times(twin: DigitalTwin, address: str, values, seed: int, nthread: int, limits: LapLimits = LapLimits(),
+               noise_seeds: int = NOISE_SEEDS) -> list[tuple[float | None, tuple[float, float] | None]]:
+    """Each value's (median lap time or None, spread) over ``noise_seeds`` seeds from ``seed``: one batch, or, for a
+    parameter that rebuilds the robot, one build per value."""
+    seeds = [seed + k for k in range(noise_seeds)]
     if twin.space.parameter(address).cost is ChangeCost.REBUILD:
-        results = [run_laps(twin.clone({address: float(v)}), [{}], seed=seed, nthread=nthread, limits=limits,
-                            keep_traces=False)[0] for v in values]
+        results = [r for v in values for r in run_laps(twin.clone({address: float(v)}), [{}] * noise_seeds, seed=seeds,
+                                                       nthread=nthread, limits=limits, keep_traces=False)]
     else:
-        results = run_laps(twin, [{address: float(v)} for v in values], seed=seed, nthread=nthread, limits=limits,
-                           keep_traces=False)
-    return [r.lap_time_s if r.completed else None for r in results]
+        results = run_laps(twin, [{address: float(v)} for v in values for _ in seeds], seed=seeds * len(values),
+                           nthread=nthread, limits=limits, keep_traces=False)
+    out = []
+    for i in range(len(values)):
+        laps = [r.lap_time_s for r in results[i * noise_seeds:(i + 1) * noise_seeds] if r.completed]
+        median = float(np.median(laps)) if 2 * len(laps) > noise_seeds else None
+        out.append((median, (min(laps), max(laps)) if laps else None))
+    return out
 
 
 def _midpoint(a: float, b: float) -> float:
@@ -176,42 +195,47 @@ def reachable_intervals(points: list[tuple[float, float | None]]) -> list[tuple[
     return merged
 
 
-def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0, limits) -> tuple[float, float, int]:
-    """Safeguarded Gauss–Newton on (t − m)² inside a bracket [a, b]; returns (value, lap time, iterations)."""
+def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0, limits,
+           noise_seeds) -> tuple[float, float, int]:
+    """Safeguarded Gauss–Newton on (t − m)² inside a bracket [a, b]; returns (value, lap time, iterations). Every
+    lap narrows the bracket by the sign of its residual (a failed lap counts as slower than any measurement: it
+    lies beyond the limit); an iteration that does not halve the bracket makes the next one a bisection."""
     x = a + (m - ta) * (b - a) / (tb - ta)  # start at the secant
     value, lap = (a, ta) if abs(ta - m) < abs(tb - m) else (b, tb)
     k = 0
     for k in range(1, max_iter + 1):
-        h = REL_STEP * max(abs(x), 1e-3)
+        width = b - a
+        h = min(REL_STEP * max(abs(x), 1e-3), 0.25 * width)
         xs = [x, min(x + h, b), max(x - h, a)]
-        t = _lap_times(twin, address, xs, seed, nthread, limits)
-        trace += [AlignPoint(k0 + k, float(v), tt) for v, tt in zip(xs, t)]
-        for v, tt in zip(xs, t):  # every completed lap narrows the bracket
-            if tt is None:
-                continue
-            if abs(tt - m) < abs(lap - m):
+        laps = _lap_times(twin, address, xs, seed, nthread, limits, noise_seeds)
+        trace += [AlignPoint(k0 + k, float(v), tt, spread) for v, (tt, spread) in zip(xs, laps)]
+        t = [tt for tt, _ in laps]
+        for v, tt in zip(xs, t):
+            if tt is not None and abs(tt - m) < abs(lap - m):
                 value, lap = v, tt
-            if (tt - m) * (ta - m) > 0:
-                a, ta = v, tt
+            if ((math.inf if tt is None else tt) - m) * (ta - m) > 0:
+                a, ta = v, (math.inf if tt is None else tt)
             else:
-                b, tb = v, tt
-        if abs(lap - m) <= TOLERANCE * m or (b - a) <= 1e-6 * max(abs(b), 1.0):
-            break
+                b, tb = v, (math.inf if tt is None else tt)
+        if abs(lap - m) <= TOLERANCE * m or _resolved(a, b):
+            break  # on the measurement, or as fine as values go (near a limit the noise makes t(p) jagged below it)
         slope = None
         if None not in t and xs[1] > xs[2]:
             slope = (t[1] - t[2]) / (xs[1] - xs[2])
         step_ok = False
-        if t[0] is not None and slope and abs(slope) > 1e-9:
+        if t[0] is not None and slope and abs(slope) > 1e-9 and b - a <= 0.5 * width:
             nxt = x - (t[0] - m) / slope  # Gauss–Newton on (t − m)²
             step_ok = a < nxt < b
-        x = nxt if step_ok else 0.5 * (a + b)  # flat or outside the bracket: bisect
+        x = nxt if step_ok else 0.5 * (a + b)  # flat, outside the bracket or too slow: bisect
     return value, lap, k
 
 
 def _solutions(found: list[tuple[float, float]], trace: list[AlignPoint], m: float) -> list[Solution]:
-    """One :class:`Solution` per disjoint range of values whose laps land within TOLERANCE of m."""
-    done = sorted((p.value, p.lap_time_s) for p in trace if p.lap_time_s is not None)
-    near = [abs(t - m) <= TOLERANCE * m for _, t in done]
+    """One :class:`Solution` per disjoint range of values whose laps land within TOLERANCE of m (the median, or the
+    spread of single laps widened by TOLERANCE)."""
+    done = sorted((p.value, p.lap_time_s, p.spread_s or (p.lap_time_s, p.lap_time_s)) for p in trace
+                  if p.lap_time_s is not None)
+    near = [abs(t - m) <= TOLERANCE * m or lo - TOLERANCE * m <= m <= hi + TOLERANCE * m for _, t, (lo, hi) in done]
     out: list[Solution] = []
     for value, lap in sorted(found):
         if abs(lap - m) > ACCEPT * m:
@@ -226,8 +250,15 @@ def _solutions(found: list[tuple[float, float]], trace: list[AlignPoint], m: flo
         while j + 1 < len(done) and near[j + 1]:
             j += 1
             hi = max(hi, done[j][0])
-        if out and lo <= out[-1].consistent[1]:
-            continue  # the same range as the last solution
+        if out and lo <= out[-1].consistent[1] + JUMP * abs(out[-1].consistent[1]):
+            # the same range as the last solution, or one a noise-jagged stretch of t(p) splits from it by less than
+            # JUMP of the value: one range, its value the nearer to the measurement
+            prev = out[-1]
+            keep = prev if abs(prev.lap_time_s - m) <= abs(lap - m) else Solution(value, lap, prev.consistent, True)
+            span = (prev.consistent[0], max(prev.consistent[1], hi))
+            narrow = span[1] - span[0] <= IDENTIFIABLE_SPAN * max(abs(keep.value), 1e-9)
+            out[-1] = Solution(keep.value, keep.lap_time_s, span, narrow)
+            continue
         narrow = hi - lo <= IDENTIFIABLE_SPAN * max(abs(value), 1e-9)
         out.append(Solution(value, lap, (lo, hi), narrow))
     return out
@@ -243,6 +274,7 @@ def align_lap_time(
     nthread: int = 0,
     limits: LapLimits = LapLimits(),
     bounds_flag: str = "--bounds",
+    noise_seeds: int = NOISE_SEEDS,
 ) -> LapTimeAlignment:
     """Align one parameter to a measured lap time (see the module docstring). A parameter that rebuilds the robot
     (``cad.*``) is searched too, one build per value, so it costs far more wall time. ``limits``: when a lap fails
@@ -261,6 +293,7 @@ def align_lap_time(
     p.check(f"{address} lower bound", lo)
     p.check(f"{address} upper bound", hi)
     m = float(measured_lap_time_s)
+    limits = dataclasses.replace(limits, timeout_s=min(limits.timeout_s, SLOWEST * m))
     trace: list[AlignPoint] = []
     current = twin.space.get(address)
 
@@ -272,8 +305,9 @@ def align_lap_time(
         values = values[: max(0, SCAN_POINTS + REFINE_LAPS - len(points))]
         if not values:
             break
-        times = _lap_times(twin, address, values, seed, nthread, limits)
-        trace += [AlignPoint(0, float(v), t) for v, t in zip(values, times)]
+        laps = _lap_times(twin, address, values, seed, nthread, limits, noise_seeds)
+        trace += [AlignPoint(0, float(v), t, spread) for v, (t, spread) in zip(values, laps)]
+        times = [t for t, _ in laps]
         points = sorted(points + [(float(v), t) for v, t in zip(values, times)])
         values = _refine(points, m, TOLERANCE)
     done = [(v, t) for v, t in points if t is not None]
@@ -281,7 +315,7 @@ def align_lap_time(
              f"the default range is {address}'s {'documented physical' if address in PHYSICAL_RANGE else 'nearby'} "
              f"range: search another with {bounds_flag} {address}=LO,HI")
     if not done:
-        return _result(address, [], m, 0, trace, (), current, (lo, hi),
+        return _result(address, [], m, 0, trace, (), current, (lo, hi), noise_seeds,
                        f"no lap completes for {address} in [{lo:g}, {hi:g}] with these gains; {widen}")
     intervals = reachable_intervals(points)
     # 3. brackets: neighbouring completed values on either side of the measurement, and exact hits
@@ -291,37 +325,52 @@ def align_lap_time(
         where = ("faster" if m < intervals[0][0] else "slower" if m > intervals[-1][1]
                  else "between the intervals it can give")
         return _result(
-            address, [], m, 0, trace, intervals, current, (lo, hi),
-            f"no {address} in [{lo:g}, {hi:g}] explains {m:g} s: the simulated lap takes {_spans(intervals)} there "
-            f"(the measurement is {where}); {widen}, or check the gains, the track or another parameter")
+            address, [], m, 0, trace, intervals, current, (lo, hi), noise_seeds,
+            f"no {address} in [{lo:g}, {hi:g}] explains {m:g} s: the simulated lap (the median of {noise_seeds} "
+            f"noise seeds) takes {_spans(intervals)} there{_single_laps(trace)} (the measurement is {where}); {widen}, "
+            "or check the gains, the track or another parameter")
     # 4. safeguarded Gauss–Newton inside each bracket
     iterations = 0
     for (a, ta), (b, tb) in brackets:
-        if any(a <= v <= b for v, _ in found):
-            continue  # a scan lap already landed within tolerance here
-        value, lap, k = _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, iterations, limits)
+        if any(a <= v <= b or _resolved(min(a, v), max(a, v)) or _resolved(min(b, v), max(b, v)) for v, _ in found):
+            continue  # a lap already landed within tolerance here, or beside it
+        value, lap, k = _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, iterations, limits,
+                               noise_seeds)
         iterations += k
         found.append((value, lap))
-    return _result(address, found, m, iterations, trace, intervals, current, (lo, hi), None)
+    return _result(address, found, m, iterations, trace, intervals, current, (lo, hi), noise_seeds, None)
 
 
 def _spans(intervals: list[tuple[float, float]]) -> str:
     return " or ".join(f"{a:.3f}–{b:.3f} s" for a, b in intervals)
 
 
+def _single_laps_seen(trace: list[AlignPoint]) -> tuple[float, float] | None:
+    spreads = [p.spread_s for p in trace if p.spread_s is not None]
+    return (min(lo for lo, _ in spreads), max(hi for _, hi in spreads)) if spreads else None
+
+
+def _single_laps(trace: list[AlignPoint]) -> str:
+    seen = _single_laps_seen(trace)
+    return f"; single laps took {seen[0]:.3f}–{seen[1]:.3f} s" if seen else ""
+
+
 def _result(address: str, found: list[tuple[float, float]], m: float, iterations: int, trace: list[AlignPoint],
-            intervals, current: float, bounds: tuple[float, float], message: str | None) -> LapTimeAlignment:
+            intervals, current: float, bounds: tuple[float, float], noise_seeds: int,
+            message: str | None) -> LapTimeAlignment:
     intervals = tuple(tuple(x) for x in intervals)
     reachable = (intervals[0][0], intervals[-1][1]) if intervals else None
-    extra = {"reachable_intervals_s": intervals, "bounds": bounds}
+    laps = len(trace) * noise_seeds
+    extra = {"reachable_intervals_s": intervals, "bounds": bounds, "single_laps_s": _single_laps_seen(trace),
+             "noise_seeds": noise_seeds}
     solutions = _solutions(found, trace, m)
     if not solutions:
         if found:  # brackets were searched but no lap got within ACCEPT: report the closest
             value, lap = min(found, key=lambda vt: abs(vt[1] - m))
             message = message or f"closest {address} = {value:.5g} gives {lap:.3f} s, {100 * (lap - m) / m:+.2f} % off"
-            return LapTimeAlignment(address, value, lap, m, False, iterations, len(trace), reachable, None, False,
-                                    message, tuple(trace), **extra)
-        return LapTimeAlignment(address, None, None, m, False, iterations, len(trace), reachable, None, False,
+            return LapTimeAlignment(address, value, lap, m, False, iterations, laps, reachable, None, False, message,
+                                    tuple(trace), **extra)
+        return LapTimeAlignment(address, None, None, m, False, iterations, laps, reachable, None, False,
                                 message or f"no {address} explains {m:g} s", tuple(trace), **extra)
     def distance(x: Solution) -> float:  # the robot changed least: by ratio for a positive parameter
         return abs(math.log(x.value / current)) if x.value > 0 and current > 0 else abs(x.value - current)
@@ -337,6 +386,6 @@ def _result(address: str, found: list[tuple[float, float]], m: float, iterations
         message += (f"; but every value in [{best.consistent[0]:.4g}, {best.consistent[1]:.4g}] gives a lap within "
                     f"{TOLERANCE * 100:g} %: the lap time hardly depends on it there, so it is not identifiable from "
                     "a lap time alone")
-    return LapTimeAlignment(address, best.value, best.lap_time_s, m, True, iterations, len(trace), reachable,
+    return LapTimeAlignment(address, best.value, best.lap_time_s, m, True, iterations, laps, reachable,
                             best.consistent, best.identifiable and len(solutions) == 1, message, tuple(trace),
                             tuple(solutions), **extra)

@@ -141,7 +141,8 @@ def control_model() -> PartialModel:
         "control",
         "raw readings → e (Eqs. 8–9) → v, ω (Eqs. 10–11) → motor voltages, every Δt (firmware in C)",
         inputs=(Port("sensor_readings", "µs"),),
-        outputs=(Port("motor_voltage", "V", "left, right: PWM duty × supply voltage"), Port("line_angle", "rad", "e")),
+        outputs=(Port("motor_command", "V", "left, right: PWM duty × supply voltage, as the firmware writes it"),
+                 Port("line_angle", "rad", "e")),
         parameters=(
             Parameter("v_max", "m/s", d["v_max"], 0.0, 3.0, C, "Eq. 10: top forward speed"),
             Parameter("kb", "m/s/rad", d["k_b"], 0.0, 10.0, C, "Eq. 10: slow-down per unit |e|"),
@@ -166,7 +167,9 @@ def timing_model() -> PartialModel:
     return PartialModel(
         "timing",
         "when the motors take the duties a control tick decides: release, the read (physics), compute",
-        inputs=(Port("sensor_readings", "µs"),),
+        inputs=(Port("motor_command", "V"), Port("sensor_readings", "µs")),
+        outputs=(Port("motor_voltage", "V", "left, right: the commands as the motors see them, a reaction time after "
+                      "each tick, at the PWM's whole counts"),),
         parameters=(
             Parameter("release", "µs", t.release_us, 0.0, 5000.0, C, "control tick to the QTR-RC lines' release "
                       "(measured on the emulated ATmega328P)"),
@@ -185,7 +188,6 @@ INFLUENCES = (
     ("motor", "motion", "rotor inertia and gearbox losses add to the wheels' inertia and damping"),
     ("cad", "sensor", "S and the sensor height place the rays; R and L set the firmware's wheel geometry"),
     ("motor", "control", "no-load speed at the supply voltage maps wheel speed to PWM duty"),
-    ("timing", "motion", "the motors take each tick's duties a reaction time after the tick"),
 )
 
 
