@@ -19,8 +19,10 @@ import tempfile
 import zipfile
 from typing import Mapping
 
+from lf_common.errors import LineFollowerError
+from lf_common.files import input_file
 from twin.errors import TwinError
-from twin.fmi.session import ControllerSession
+from twin.fmi.wall import WalledController
 
 log = logging.getLogger(__name__)
 
@@ -104,8 +106,10 @@ def _fail(path: str, why: str) -> TwinError:
 
 def read_controller(path: str):
     """fmpy's model description of a controller FMU that this platform can run, or TwinError in one line."""
-    if not os.path.isfile(path):
-        raise _fail(path, "no such file")
+    try:
+        input_file(path, "file")  # a folder or a FIFO is not "no such file"
+    except LineFollowerError as e:
+        raise TwinError(f"--controller-fmu {e}") from None
     if not zipfile.is_zipfile(path):
         raise _fail(path, "not an FMU (not a zip archive)")
     from fmpy import read_model_description  # the loader (a dependency); imported when an FMU is used
@@ -213,6 +217,7 @@ class ControllerFmu:
                 "model_name": self.md.modelName, "inputs": dict(self.sense),
                 "outputs": {self.drive[p]: p for p in self.drive}, "actuation": self.actuation}
 
-    def start(self) -> ControllerSession:
-        """Instantiate and initialise the FMU at time 0; the session steps it (close it when done)."""
-        return ControllerSession(self)
+    def start(self) -> WalledController:
+        """Start the FMU's own process, which instantiates and initialises it at time 0 meanwhile; the returned
+        controller steps it (use it in a ``with`` block: it ends the process)."""
+        return WalledController(self)
