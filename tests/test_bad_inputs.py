@@ -55,6 +55,9 @@ CASES = [
     ("view {user.rrd}", "not a rerun recording"),
     ("view {missing_dir}/x.rrd", "no such recording"),
     ("graph --set x", "expected ADDRESS=VALUE"),
+    # about 10 M laps (2.5-3 GB within 2 minutes) were accepted; sweep refuses over 20,000
+    ("graph --learn --samples 1048576 --out-dir {dir}/g", "would run up to 10,"),
+    ("graph --learn --samples 8192 --param motion.mu --out-dir {dir}/g", "24,600 laps, about"),
     ("generate --out-dir {dir}/r --set cad.R=0", "cad.R"),
     ("generate --out-dir {dir}/r --set motion.mu=1", "not a CAD parameter"),
 ]
