@@ -145,5 +145,7 @@ def _say_board(out: Output, board: BoardReport) -> None:
     leds = board.led_summary(board.cycles / board.f_cpu_hz)["final"]
     out.say(f"LCD at the end: {final}; {len(board.lcd)} screens; buzzer: {len(board.notes)} notes; LEDs at the end: "
             f"red {'on' if leds['red'] else 'off'}, green {'on' if leds['green'] else 'off'}")
+    if line := board.resets_line():
+        out.say(line)
     for line in board.unmodelled:
         out.say(f"note: the program used a peripheral the board model does not connect: {line}")

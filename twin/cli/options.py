@@ -82,6 +82,13 @@ def deprecated(action: type[argparse.Action], new: str) -> type[argparse.Action]
 
 # --- value types: each refuses what makes no sense with a one-line usage error --------------------------
 
+def bound(x: float) -> str:
+    """A range's end as written: a whole number in full (1048576, not 1.04858e+06), else up to 12 digits."""
+    if isinstance(x, int) or (math.isfinite(x) and float(x).is_integer() and abs(x) < 1e21):
+        return str(int(x))
+    return f"{x:.12g}"
+
+
 def number(lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False, integer: bool = False):
     """An argparse type: a finite number in [lo, hi] (or (lo, hi] with ``lo_open``)."""
 
@@ -92,7 +99,7 @@ def number(lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False, i
             raise argparse.ArgumentTypeError(f"{text!r} is not {'a whole number' if integer else 'a number'}") from None
         if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
             left = "(" if lo_open else "["
-            raise argparse.ArgumentTypeError(f"{text!r} is outside {left}{lo:g}, {hi:g}]")
+            raise argparse.ArgumentTypeError(f"{text!r} is outside {left}{bound(lo)}, {bound(hi)}]")
         return v
 
     return parse
@@ -249,7 +256,7 @@ def keep_history(url: str | None, write, out) -> dict | None:
         finally:
             history.close()
     except HistoryError as e:
-        out.say(f"warning: {e}; the result stands")
+        out.warn(f"{e}; the result stands")
         return {"db": display(url), "error": str(e)}
 
 
