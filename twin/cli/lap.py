@@ -64,7 +64,10 @@ def run(args: argparse.Namespace) -> int:
             raise TwinError("--controller-fmu: the controller FMU drives instead of the firmware; leave out --firmware")
         controller = ControllerFmu(args.controller_fmu, parse_map(args.map), int(twin.space.get("sensor.count")),
                                    twin.space.get("control.dt"))
-        result = run_controller_lap(twin, controller, seed=args.seed, limits=limits, keep_trace=keep)
+        try:
+            result = run_controller_lap(twin, controller, seed=args.seed, limits=limits, keep_trace=keep)
+        finally:
+            controller.close()  # its process frees the FMU and ends
     elif args.firmware == "c":
         result = run_laps(twin, [{}], seed=args.seed, limits=limits, keep_traces=keep)[0]
     elif program is None:

@@ -16,13 +16,14 @@ import logging
 import os
 import re
 import tempfile
+import weakref
 import zipfile
 from typing import Mapping
 
 from lf_common.errors import LineFollowerError
 from lf_common.files import input_file
 from twin.errors import TwinError
-from twin.fmi.wall import WalledController
+from twin.fmi.wall import ControllerHost, WalledController
 
 log = logging.getLogger(__name__)
 
@@ -209,7 +210,8 @@ class ControllerFmu:
         self.sample_time = float(step) if step not in (None, "") else float(control_dt)
         if not (self.sample_time > 0 and self.sample_time <= 1.0):
             raise _fail(path, f"its sample time {self.sample_time:g} s is outside (0, 1] s")
-        self._session = None
+        self._host: ControllerHost | None = None
+        self._finalizer = None
 
     def describe(self) -> dict:
         """What runs, for --json: the FMU, its version, sample time and the mapping used."""
@@ -218,6 +220,18 @@ class ControllerFmu:
                 "outputs": {self.drive[p]: p for p in self.drive}, "actuation": self.actuation}
 
     def start(self) -> WalledController:
-        """Start the FMU's own process, which instantiates and initialises it at time 0 meanwhile; the returned
-        controller steps it (use it in a ``with`` block: it ends the process)."""
-        return WalledController(self)
+        """One lap: a fresh instance of the FMU, instantiated and initialised at time 0 in the controller's own
+        process (started with the first lap, and again after a lap that ended in a fault), meanwhile the twin goes
+        on; the returned controller steps it (use it in a ``with`` block)."""
+        if self._host is None or not self._host.alive:
+            self._host = ControllerHost(self)
+            if self._finalizer is not None:
+                self._finalizer.detach()
+            self._finalizer = weakref.finalize(self, self._host.close)  # also at the interpreter's exit
+        return WalledController(self._host)
+
+    def close(self) -> None:
+        """End the controller's process (it frees the FMU) and remove its files; a later lap starts it again."""
+        if self._finalizer is not None:
+            self._finalizer()
+        self._host = self._finalizer = None

@@ -2,9 +2,11 @@
 it on request, so that a step that hangs, crashes or calls ``exit`` takes only this process with it.
 
 Run as ``python -m twin.fmi.host SETUP_JSON`` by the wall, never by hand. It reads requests on file descriptor
-``request_fd`` and answers on ``reply_fd`` (:mod:`twin.fmi.protocol`); the wall makes its stdout the twin's stderr
-(a foreign library's prints never reach the twin's JSON). It dies with the twin (Linux's PR_SET_PDEATHSIG), ignores Ctrl-C
-(the twin ends it), and at the end of the requests terminates and frees the FMU and exits 0.
+``request_fd`` and answers on ``reply_fd`` (:mod:`twin.fmi.protocol`): laps one after another, each on a fresh
+instance extracted into the folder the twin names (so the FMU's library is loaded anew), stepped on request. The
+wall makes its stdout the twin's stderr (a foreign library's prints never reach the twin's JSON). It dies with the
+twin (Linux's PR_SET_PDEATHSIG), ignores Ctrl-C (the twin ends it), and at the end of the requests terminates and
+frees the FMU and exits 0.
 """
 
 from __future__ import annotations
@@ -30,30 +32,52 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def serve(setup: dict) -> int:
-    """Load the FMU that ``setup`` names, answer its step requests, and close it at the end of the requests."""
-    from fmpy import read_model_description
-
+def _open(setup: dict, md, folder: str):
+    """A fresh instance of the FMU extracted into ``folder``: the session, or the error line to send."""
     from twin.errors import TwinError
     from twin.fmi.session import ControllerSession
 
-    requests, replies = setup["request_fd"], setup["reply_fd"]
+    controller = SimpleNamespace(path=setup["path"], md=md, fmi_version=setup["fmi_version"],
+                                 sense=dict(setup["sense"]), drive=dict(setup["drive"]))
     try:
-        md = read_model_description(setup["path"], validate=False)
-        controller = SimpleNamespace(path=setup["path"], md=md, fmi_version=setup["fmi_version"],
-                                     sense=dict(setup["sense"]), drive=dict(setup["drive"]))
-        session = ControllerSession(controller, setup["folder"])
+        return ControllerSession(controller, folder), None
     except TwinError as e:
-        protocol.send_error(replies, str(e))
-        return 0
+        return None, str(e)
     except Exception as e:  # fmpy's own errors: one line all the same
-        protocol.send_error(replies, f"--controller-fmu {setup['path']}: it failed to load ({' '.join(str(e).split())[:200]})")
-        return 0
+        return None, f"--controller-fmu {setup['path']}: it failed to load ({' '.join(str(e).split())[:200]})"
+
+
+def serve(setup: dict) -> int:
+    """Answer the twin's requests: a lap opens a fresh instance of the FMU (closing the lap before), a step steps
+    it; the end of the requests closes it. A failed call is sent as its error line, and ends this process."""
+    from fmpy import read_model_description
+
+    from twin.errors import TwinError
+
+    requests, replies = setup["request_fd"], setup["reply_fd"]
     ports = [port for _, port in setup["sense"]]
-    protocol.send_ready(replies)
+    layout = protocol.request(len(ports))
+    md, session = None, None
     try:
-        while (request := protocol.read_request(requests, len(ports))) is not None:
-            t, h, values = request
+        while (kind := protocol.read_exact(requests, 1)) is not None:
+            if kind == protocol.LAP:
+                (n,) = protocol.LENGTH.unpack(protocol.read_exact(requests, protocol.LENGTH.size) or b"\0" * 4)
+                folder = (protocol.read_exact(requests, n) or b"").decode("utf-8")
+                if session is not None:
+                    session, old = None, session
+                    old.close()
+                if md is None:
+                    md = read_model_description(setup["path"], validate=False)
+                session, why = _open(setup, md, folder)
+                if session is None:
+                    protocol.send_error(replies, why)
+                    return 0
+                protocol.send_ready(replies)
+                continue
+            raw = protocol.read_exact(requests, layout.size)
+            if raw is None or kind != protocol.STEP or session is None:
+                return 1  # not the protocol: the twin sees this process end
+            t, h, *values = layout.unpack(raw)
             try:
                 left, right = session.step(t, h, dict(zip(ports, values)))
             except TwinError as e:
@@ -61,7 +85,8 @@ def serve(setup: dict) -> int:
                 return 0
             protocol.send_outputs(replies, left, right)
     finally:
-        session.close()
+        if session is not None:
+            session.close()
     return 0
 
 

@@ -5,9 +5,13 @@ Each fault ends the lap with one TwinError line naming the FMU and what it did: 
 ``step_limit_s`` wall seconds (the process is killed: "hung for 5 s"), a crash ("crashed with signal 11
 (SIGSEGV)"), an ``exit`` ("exited with status 0"), an output that is not finite ("returned NaN at t = … s"), and an
 FMI call that failed (its own message). The twin waits for the controller in ``poll``, so Ctrl-C and SIGTERM reach
-it at once; leaving the ``with`` block on an exception kills the process at once, and the process dies with the
-twin however the twin dies (Linux's PR_SET_PDEATHSIG). A well-behaved FMU gives the very outputs it gives in
-process: the inputs and outputs cross as float64, bit for bit.
+it at once; leaving a lap on an exception kills the process at once, and the process dies with the twin however the
+twin dies (Linux's PR_SET_PDEATHSIG). A well-behaved FMU gives the very outputs it gives in process: the inputs and
+outputs cross as float64, bit for bit.
+
+One process (:class:`ControllerHost`) serves one controller's laps one after another, each on a fresh instance
+extracted afresh (its library loaded anew: no state of one lap reaches the next); it starts once, so a second lap
+does not pay for Python and fmpy again. :class:`WalledController` is one lap's view of it.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import logging
 import math
 import os
 import select
+import shutil
 import signal
 import subprocess
 import sys
@@ -40,8 +45,9 @@ def _signal_name(number: int) -> str:
         return "unknown"
 
 
-class WalledController:
-    """A controller FMU in its own process; start it early (loading overlaps the twin's own work), step it, close it.
+class ControllerHost:
+    """The process a controller FMU runs in, and the protocol with deadlines; any fault kills it (then
+    :attr:`alive` is False) and is raised as one TwinError line.
 
     Args:
       controller: the checked and mapped :class:`twin.fmi.controller.ControllerFmu`.
@@ -54,11 +60,11 @@ class WalledController:
         self.ports = list(controller.sense.values())  # the inputs' twin ports, in the order the host maps them
         self.outputs = [controller.drive[p] for p in sorted(controller.drive)]  # *_left before *_right
         self._layout = protocol.request(len(self.ports))
-        self._ready = False
-        self._folder = tempfile.TemporaryDirectory(prefix="twin-controller-")
+        self._folders: list[str] = []  # each lap's extracted FMU; removed once the process is done with them
+        self._pending = 0  # laps asked for and not yet answered ready (a lap may end before its first step)
         requests_in, self._requests = os.pipe()
         self._replies, replies_out = os.pipe()
-        setup = {"path": os.path.abspath(self.path), "folder": self._folder.name, "fmi_version": controller.fmi_version,
+        setup = {"path": os.path.abspath(self.path), "fmi_version": controller.fmi_version,
                  "sense": list(controller.sense.items()), "drive": dict(controller.drive),
                  "request_fd": requests_in, "reply_fd": replies_out, "parent_pid": os.getpid(),
                  "log_level": logging.getLogger("twin.fmi.controller").getEffectiveLevel()}
@@ -70,13 +76,16 @@ class WalledController:
                                             pass_fds=(requests_in, replies_out), start_new_session=True, env=env)
         except OSError as e:
             self._close_fds()
-            self._folder.cleanup()
             raise TwinError(f"--controller-fmu {self.path}: cannot start its process ({e.strerror or e})") from None
         finally:
             os.close(requests_in)
             os.close(replies_out)
         self._poll = select.poll()
         self._poll.register(self._replies, select.POLLIN | select.POLLHUP | select.POLLERR)
+
+    @property
+    def alive(self) -> bool:
+        return self.process.returncode is None and self._requests >= 0
 
     # --- the protocol, with deadlines ------------------------------------------------------------------------------
 
@@ -87,7 +96,7 @@ class WalledController:
             if left_ms <= 0 or not self._poll.poll(max(1, math.ceil(left_ms))):
                 if time.monotonic() < deadline:
                     continue
-                self._kill()
+                self.kill()
                 raise TwinError(f"--controller-fmu {self.path}: hung for {limit_s:g} s {doing} without returning "
                                 "(its process was stopped)")
             chunk = os.read(self._replies, n - got)
@@ -97,56 +106,62 @@ class WalledController:
             got += len(chunk)
         return b"".join(parts)
 
-    def _reply(self, doing: str, limit_s: float) -> bytes:
-        """(the next reply's kind, its deadline); an error reply is raised as its TwinError line."""
+    def _reply(self, expected: bytes, doing: str, limit_s: float) -> float:
+        """Wait for a reply of kind ``expected``; its deadline. An error reply is raised as its TwinError line."""
         deadline = time.monotonic() + limit_s
         kind = self._read(1, deadline, doing, limit_s)
         if kind == protocol.ERROR:
             (n,) = protocol.LENGTH.unpack(self._read(protocol.LENGTH.size, deadline, doing, limit_s))
             text = self._read(n, deadline, doing, limit_s).decode("utf-8", "replace")
-            self._kill()
+            self.kill()
             raise TwinError(text)
-        if kind not in (protocol.READY, protocol.OUTPUTS):
-            self._kill()
-            raise TwinError(f"--controller-fmu {self.path}: its process answered {kind!r} {doing}, not the protocol")
-        return kind, deadline
+        if kind != expected:
+            self.kill()
+            raise TwinError(f"--controller-fmu {self.path}: its process answered {kind!r} {doing}, out of the protocol")
+        return deadline
+
+    def _send(self, data: bytes, doing: str) -> None:
+        try:
+            protocol.write_all(self._requests, data)
+        except BrokenPipeError:  # it died after its last answer
+            raise self._died(doing) from None
 
     def _died(self, doing: str) -> TwinError:
         try:
             code = self.process.wait(CLOSE_LIMIT_S)
         except subprocess.TimeoutExpired:
-            self._kill()
+            self.kill()
             return TwinError(f"--controller-fmu {self.path}: closed its pipe {doing}")
-        if code < 0:
-            what = f"crashed with signal {-code} ({_signal_name(-code)})"
-        else:
-            what = f"exited with status {code}"
+        self.kill()  # (reaped: this closes the pipes and removes the extracted files)
+        what = f"crashed with signal {-code} ({_signal_name(-code)})" if code < 0 else f"exited with status {code}"
         return TwinError(f"--controller-fmu {self.path}: {what} {doing}; a controller FMU must return to the twin")
 
-    # --- the face ---------------------------------------------------------------------------------------------------
+    # --- laps ------------------------------------------------------------------------------------------------------
+
+    def begin_lap(self) -> None:
+        """Ask for a fresh instance, extracted into a new folder, initialised at time 0 (awaited at the first step)."""
+        folder = tempfile.mkdtemp(prefix="twin-controller-")
+        self._folders.append(folder)
+        self._pending += 1
+        self._send(protocol.lap_request(folder), "while loading")
 
     def wait_ready(self) -> None:
-        """Wait until the FMU is loaded and initialised; its refusal, crash or hang is one TwinError line."""
-        if not self._ready:
-            kind, _ = self._reply("while loading", self.load_limit_s)
-            if kind != protocol.READY:
-                self._kill()
-                raise TwinError(f"--controller-fmu {self.path}: its process answered before it was ready")
-            self._ready = True
+        """Wait until this lap's instance is loaded and initialised; its refusal, crash or hang is one TwinError."""
+        if self._pending:
+            while self._pending:
+                self._reply(protocol.READY, "while loading", self.load_limit_s)
+                self._pending -= 1
+            for folder in self._folders[:-1]:  # the earlier laps' instances are closed by now
+                shutil.rmtree(folder, ignore_errors=True)
+            del self._folders[:-1]
 
     def step(self, t: float, h: float, values: Sequence[float]) -> tuple[float, float]:
         """Step the FMU from ``t`` to ``t + h`` [s] on ``values`` (of :attr:`ports`, in order): its (left, right)
         outputs."""
         self.wait_ready()
         doing = f"in its step at t = {t:.6g} s"
-        try:
-            os.write(self._requests, self._layout.pack(t, h, *values))
-        except BrokenPipeError:  # it died after its last answer
-            raise self._died(doing) from None
-        kind, deadline = self._reply(doing, self.step_limit_s)
-        if kind != protocol.OUTPUTS:
-            self._kill()
-            raise TwinError(f"--controller-fmu {self.path}: its process answered out of turn {doing}")
+        self._send(protocol.STEP + self._layout.pack(t, h, *values), doing)
+        deadline = self._reply(protocol.OUTPUTS, doing, self.step_limit_s)
         left, right = protocol.OUT.unpack(self._read(protocol.OUT.size, deadline, doing, self.step_limit_s))
         for name, value in zip(self.outputs, (left, right)):
             if not math.isfinite(value):
@@ -155,42 +170,61 @@ class WalledController:
                                 "a controller's outputs must be finite numbers")
         return left, right
 
-    def _kill(self) -> None:
+    # --- the end ---------------------------------------------------------------------------------------------------
+
+    def _close_fds(self) -> None:
+        for name in ("_requests", "_replies"):
+            fd = getattr(self, name)
+            if fd >= 0:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+                setattr(self, name, -1)
+
+    def _forget_folders(self) -> None:
+        for folder in self._folders:
+            shutil.rmtree(folder, ignore_errors=True)
+        self._folders.clear()
+
+    def kill(self) -> None:
+        """End the process now (a fault, Ctrl-C, SIGTERM); remove the extracted files."""
         if self.process.poll() is None:
             self.process.kill()
         self.process.wait()
+        self._close_fds()
+        self._forget_folders()
 
-    def _close_fds(self) -> None:
-        for fd in (self._requests, self._replies):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-
-    def close(self, at_once: bool = False) -> None:
-        """End the FMU's process: at the end of the requests it terminates and frees the FMU (it is killed if that
-        takes over ``CLOSE_LIMIT_S``); ``at_once`` kills it now. Its extracted files are removed."""
-        try:
+    def close(self) -> None:
+        """At the end of the requests the process terminates and frees the FMU and exits (killed if that takes over
+        ``CLOSE_LIMIT_S``); the extracted files are removed."""
+        if self._requests >= 0:
             os.close(self._requests)
-        except OSError:
-            pass
+            self._requests = -1
         try:
-            if at_once:
-                self._kill()
-            else:
-                try:
-                    self.process.wait(CLOSE_LIMIT_S)
-                except subprocess.TimeoutExpired:
-                    self._kill()
-        finally:
-            try:
-                os.close(self._replies)
-            except OSError:
-                pass
-            self._folder.cleanup()
+            self.process.wait(CLOSE_LIMIT_S)
+        except subprocess.TimeoutExpired:
+            pass
+        self.kill()
+
+
+class WalledController:
+    """One lap of a controller FMU in its process (:class:`ControllerHost`): use it in a ``with`` block, which
+    leaves the process for the next lap, or kills it when the lap ends in an exception (Ctrl-C included)."""
+
+    def __init__(self, host: ControllerHost):
+        self.host, self.ports = host, host.ports
+        host.begin_lap()
+
+    def wait_ready(self) -> None:
+        self.host.wait_ready()
+
+    def step(self, t: float, h: float, values: Sequence[float]) -> tuple[float, float]:
+        return self.host.step(t, h, values)
 
     def __enter__(self) -> "WalledController":
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self.close(at_once=exc_type is not None)
+        if exc_type is not None:
+            self.host.kill()
