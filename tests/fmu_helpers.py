@@ -108,6 +108,22 @@ def broken_fmu(path: str, what: str) -> str:
         return _zip(tree, path)
 
 
+def controller_processes(pid: int) -> list[int]:
+    """The controller FMU processes (``python -m twin.fmi.host``) whose parent is ``pid`` and that still run."""
+    out = []
+    for entry in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                cmdline = f.read()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z" and b"twin.fmi.host" in cmdline:
+            out.append(int(entry))
+    return out
+
+
 # --- running FMUs with fmpy -----------------------------------------------------------------------------------------
 
 class Slave:

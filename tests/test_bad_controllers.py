@@ -18,7 +18,7 @@ import pytest
 pytest.importorskip("fmpy")
 
 from bad_cli import check_row  # noqa: E402
-from fmu_helpers import build_controller, have_compiler  # noqa: E402
+from fmu_helpers import build_controller, controller_processes, have_compiler  # noqa: E402
 from twin.core import DigitalTwin  # noqa: E402
 from twin.fmi.wall import STEP_LIMIT_S  # noqa: E402
 
@@ -72,22 +72,6 @@ def test_a_bad_controller_is_one_last_line(capfd, places, line, status, words):
     assert time.monotonic() - t0 < STEP_LIMIT_S + 60
 
 
-def _hosts(pid: int) -> list[int]:
-    """The controller processes (``python -m twin.fmi.host``) whose parent is ``pid``."""
-    out = []
-    for entry in filter(str.isdigit, os.listdir("/proc")):
-        try:
-            with open(f"/proc/{entry}/stat") as f:
-                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
-            with open(f"/proc/{entry}/cmdline", "rb") as f:
-                cmdline = f.read()
-        except OSError:
-            continue
-        if ppid == pid and b"twin.fmi.host" in cmdline:
-            out.append(int(entry))
-    return out
-
-
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_hung_controller_ends_at_once_on_ctrl_c_or_sigterm(places, signum, code):
     p = subprocess.Popen([sys.executable, "-m", "twin.run", "lap", "--controller-fmu", places["hang"]],
@@ -96,7 +80,7 @@ def test_a_hung_controller_ends_at_once_on_ctrl_c_or_sigterm(places, signum, cod
         deadline, hosts = time.monotonic() + 60, []
         while not hosts and time.monotonic() < deadline and p.poll() is None:
             time.sleep(0.05)
-            hosts = _hosts(p.pid)
+            hosts = controller_processes(p.pid)
         assert hosts, "the controller's process never started"
         time.sleep(1.0)  # it loads and steps 99 times well within this; then it hangs (for 5 s, at most)
         sent = time.monotonic()
