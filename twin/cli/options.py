@@ -82,11 +82,8 @@ def deprecated(action: type[argparse.Action], new: str) -> type[argparse.Action]
 
 # --- value types: each refuses what makes no sense with a one-line usage error --------------------------
 
-def bound(x: float) -> str:
-    """A range's end as written: a whole number in full (1048576, not 1.04858e+06), else up to 12 digits."""
-    if isinstance(x, int) or (math.isfinite(x) and float(x).is_integer() and abs(x) < 1e21):
-        return str(int(x))
-    return f"{x:.12g}"
+def bound(x: float) -> str:  # a range's end: a whole number in full (1048576, not 1.04858e+06), else 12 digits
+    return str(int(x)) if math.isfinite(x) and float(x).is_integer() and abs(x) < 1e21 else f"{x:.12g}"
 
 
 def number(lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False, integer: bool = False):
