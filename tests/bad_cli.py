@@ -44,9 +44,10 @@ def _digests(files: Iterable[str]) -> dict[str, str | None]:
 
 
 def check_row(capfd, places: dict[str, str], line: str, status: int, words: Iterable[str],
-              owned: Iterable[str] = ()) -> str:
+              owned: Iterable[str] = (), warnings: Iterable[str] = ()) -> str:
     """Run ``line`` (placeholders filled) and check how it ends; the files in ``owned`` (the user's) must be
-    unchanged and nothing of theirs copied or moved aside. Returns stdout."""
+    unchanged and nothing of theirs copied or moved aside; each of ``warnings`` must be in a ``warning: …`` line on
+    stderr, and no warning may reach stdout. Returns stdout."""
     argv = [fill(a, places) for a in shlex.split(line)]
     owned = [fill(f, places) for f in owned]
     before = _digests(owned)
@@ -63,6 +64,9 @@ def check_row(capfd, places: dict[str, str], line: str, status: int, words: Iter
             assert fill(w, places) in errors[0], (w, errors[0])
     else:
         assert not errors, errors
+    for w in warnings:
+        assert any(x.startswith("warning: ") and fill(w, places) in x for x in lines), (w, lines[-6:])
+    assert "warning:" not in out, f"a warning on stdout: {out[-500:]}"
     assert _digests(owned) == before, "a file the user owns was changed"
     for f in owned:
         folder = os.path.dirname(f)

@@ -58,9 +58,14 @@ def _zip(folder: str, path: str) -> str:
     return path
 
 
+FAULTS = {"hang": 1, "segfault": 2, "exit": 3, "nan": 4}  # tests/fmu/controller.c's CTL_FAULT
+
+
 def build_controller(twin: DigitalTwin, path: str, position_input: bool = False, speed_outputs: bool = False,
-                     names: tuple[str, str, str] | None = None, step: float | None = None) -> str:
-    """A controller FMU with the firmware's control law and the twin's gains, at ``path``."""
+                     names: tuple[str, str, str] | None = None, step: float | None = None, fault: str | None = None,
+                     fault_tick: int = 100) -> str:
+    """A controller FMU with the firmware's control law and the twin's gains, at ``path``; with ``fault`` (a key of
+    :data:`FAULTS`) its step number ``fault_tick`` hangs, segfaults, calls exit(0) or outputs NaN."""
     p = twin.control_params()
     supply = twin.physics().supply_voltage
     names = names or ("line_position" if position_input else "line_angle",
@@ -71,7 +76,8 @@ def build_controller(twin: DigitalTwin, path: str, position_input: bool = False,
         with open(os.path.join(work, "controller_config.h"), "w") as f:
             f.write(f'#define CTL_GUID "{GUID}"\n#define CTL_PARAMS {{{values}}}\n#define CTL_SUPPLY_VOLTAGE {supply!r}\n'
                     + ("#define CTL_INPUT_POSITION\n" if position_input else "")
-                    + ("#define CTL_OUTPUT_SPEEDS\n" if speed_outputs else ""))
+                    + ("#define CTL_OUTPUT_SPEEDS\n" if speed_outputs else "")
+                    + (f"#define CTL_FAULT {FAULTS[fault]}\n#define CTL_FAULT_TICK {fault_tick}\n" if fault else ""))
         tree = os.path.join(work, "fmu")
         os.makedirs(os.path.join(tree, "binaries", "linux64"))
         subprocess.run(["gcc", "-std=c99", "-O2", "-ffp-contract=off", "-fPIC", "-shared", f"-I{work}",
@@ -100,6 +106,22 @@ def broken_fmu(path: str, what: str) -> str:
         with open(os.path.join(folder, "controller.dll" if what == "no-binary" else "controller.so"), "wb") as f:
             f.write(b"\0")
         return _zip(tree, path)
+
+
+def controller_processes(pid: int) -> list[int]:
+    """The controller FMU processes (``python -m twin.fmi.host``) whose parent is ``pid`` and that still run."""
+    out = []
+    for entry in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                cmdline = f.read()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z" and b"twin.fmi.host" in cmdline:
+            out.append(int(entry))
+    return out
 
 
 # --- running FMUs with fmpy -----------------------------------------------------------------------------------------

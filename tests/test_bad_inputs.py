@@ -55,6 +55,12 @@ CASES = [
     ("view {user.rrd}", "not a rerun recording"),
     ("view {missing_dir}/x.rrd", "no such recording"),
     ("graph --set x", "expected ADDRESS=VALUE"),
+    # about 10 M laps (2.5-3 GB within 2 minutes) were accepted; sweep refuses over 20,000
+    ("graph --learn --samples 1048576 --out-dir {dir}/g", "would run up to 10,"),
+    ("graph --learn --samples 8192 --param motion.mu --out-dir {dir}/g", "24,600 laps, about"),
+    # a range's ends in full (it said 1.04858e+06)
+    ("graph --learn --samples 4000000", "outside [8, 1048576]"),
+    ("lap --seed 99999999999999999999999", "outside [0, 18446744073709551615]"),
     ("generate --out-dir {dir}/r --set cad.R=0", "cad.R"),
     ("generate --out-dir {dir}/r --set motion.mu=1", "not a CAD parameter"),
 ]

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -53,6 +54,24 @@ def test_bad_link_input_is_one_last_line(capfd, places, disks, line, status, wor
     if "--json" in line and line.startswith("live"):  # stopped cleanly: the summary, with what was read
         summary = json.loads(out)
         assert "No space left on device" in summary["log_error"] and summary["log"].endswith("l.log")
+
+
+# (command line, exit status, files that must not be left behind): a link that never opened received nothing
+NOTHING_LEFT = [
+    (f"live {OVAL} --port {{dir}}/no-robot --log {{dir}}/never.log --retry 1", 1,
+     ["{dir}/never.log", "{dir}/never.log.breaks", "{dir}/never.log.actions"]),
+    (f"live {OVAL} --port {{dir}}/no-robot --log {{dir}}/never2.log --retry 1 --json", 1,
+     ["{dir}/never2.log", "{dir}/never2.log.breaks", "{dir}/never2.log.actions"]),
+]
+
+
+@pytest.mark.parametrize("line, status, absent", NOTHING_LEFT, ids=[r[0] for r in NOTHING_LEFT])
+def test_a_link_that_never_opens_leaves_no_files(capfd, places, line, status, absent):
+    out = check_row(capfd, places, line, status, [])
+    left = [f for f in (a.format(**places) for a in absent) if os.path.exists(f)]
+    assert not left, f"left behind: {left}"
+    if "--json" in line:
+        assert json.loads(out)["log"] is None
 
 
 def test_live_help_offers_only_links_a_robot_can_reach(capsys):

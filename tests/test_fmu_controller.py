@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("fmpy")
 
-from fmu_helpers import broken_fmu, build_controller, have_compiler  # noqa: E402
+from fmu_helpers import broken_fmu, build_controller, controller_processes, have_compiler  # noqa: E402
 from twin.cli import main as front_door  # noqa: E402
 from twin.core import DigitalTwin, run_laps  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
@@ -61,6 +61,18 @@ def test_the_firmware_as_a_controller_fmu_drives_the_firmwares_lap(twin, lap, co
         assert (r.trace.column(name)[:n] == lap.trace.column(name)[:n]).all(), name
     again = run_controller_lap(twin, c, seed=3)
     assert again.trace.records.tobytes() == r.trace.records.tobytes()  # same seed, bit for bit
+
+
+def test_one_process_serves_a_controllers_laps_and_ends_with_close(twin, controllers):
+    c = controller(twin, controllers["angle"])
+    first = run_controller_lap(twin, c, seed=3, keep_trace=False)
+    process = controller_processes(os.getpid())
+    assert len(process) == 1  # the FMU runs in a process of its own
+    again = run_controller_lap(twin, c, seed=3, keep_trace=False)
+    assert controller_processes(os.getpid()) == process  # the same one, a fresh instance: the same lap
+    assert (again.lap_time_s, again.energy_j) == (first.lap_time_s, first.energy_j)
+    c.close()
+    assert not controller_processes(os.getpid())
 
 
 def test_position_in_and_wheel_speed_set_points_out(twin, lap, controllers):

@@ -173,9 +173,10 @@ def test_lap_and_align_keep_their_runs_and_an_unreachable_database_is_one_line(t
         port = s.getsockname()[1]
     capsys.readouterr()
     assert main(["lap", "--track", "oval", "--db", f"postgresql://twin@127.0.0.1:{port}/none"]) == 0
-    said = capsys.readouterr().out
-    assert sum("warning:" in line and "history database" in line for line in said.splitlines()) == 1
-    assert "lap completed" in said
+    said = capsys.readouterr()
+    assert sum("warning:" in line and "history database" in line for line in said.err.splitlines()) == 1
+    assert "warning:" not in said.out  # stdout keeps the answer alone
+    assert "lap completed" in said.out
     for bad in (["history", "--db", sqlite(tmp_path, "missing.sqlite")], ["history", "--log", "x.log"],
                 ["lap", "--db", "not a url"], ["lap", "--db", f"sqlite:///{tmp_path}/no/such/folder.sqlite"]):
         assert main(bad) == 2

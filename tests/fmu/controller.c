@@ -3,9 +3,14 @@
  * twin/csrc/firmware/line_follower.c) on the line angle (or, with CTL_INPUT_POSITION, the readLine position), driving
  * motor voltages (or, with CTL_OUTPUT_SPEEDS, wheel-speed set-points). In the twin's loop it must drive exactly as
  * the firmware does. Value references: 0 the input, 1 and 2 the left and right outputs, 3 k_p (a tunable parameter).
- * controller_config.h (written by the test) gives CTL_GUID and the firmware's parameters. */
+ * controller_config.h (written by the test) gives CTL_GUID and the firmware's parameters; CTL_FAULT (1 hang, 2
+ * segfault, 3 exit(0), 4 NaN out) injects one fault into the step at CTL_FAULT_TICK, for the twin's wall around
+ * foreign code. */
+#define _POSIX_C_SOURCE 200809L /* pause() */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "controller_config.h"
 #include "fmi2Functions.h"
@@ -84,6 +89,14 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no) {
   lf_control(&k->s, &k->p, e);
   lf_wheel_duties(&k->p, k->s.v, k->s.omega, &left, &right);
   if (k->s.tick < LF_TICKS_MAX) k->s.tick++;
+#ifdef CTL_FAULT
+  if (k->s.tick == CTL_FAULT_TICK) {
+    if (CTL_FAULT == 1) for (;;) pause(); /* never returns, and burns no CPU meanwhile */
+    if (CTL_FAULT == 2) *(volatile int *)0 = 1;
+    if (CTL_FAULT == 3) exit(0);
+    if (CTL_FAULT == 4) left = NAN;
+  }
+#endif
 #ifdef CTL_OUTPUT_SPEEDS
   k->out[0] = left * k->p.wheel_speed_max, k->out[1] = right * k->p.wheel_speed_max;
 #else

@@ -30,7 +30,10 @@ def robots(history: History, name: str | None = None) -> list[dict]:
             q = q.where(s.robots.c.name == name)
         rows = [dict(r._mapping) for r in c.execute(q)]
     if name is not None and not rows:
-        raise TwinError(f"--robot {name}: no such robot in the history database")
+        with history.begin() as c:
+            known = [r.name for r in c.execute(sa.select(s.robots.c.name).order_by(s.robots.c.name))]
+        raise TwinError(f"--robot-id {name}: no such robot in the history database (it holds: "
+                        f"{', '.join(known[:20]) or 'none'}{', …' if len(known) > 20 else ''})")
     return rows
 
 

@@ -45,6 +45,9 @@ def display(url: str) -> str:
         return url
 
 
+BACKENDS = ("sqlite", "postgresql")  # what the migrations are written and tested for
+
+
 def _engine(url: str) -> sa.Engine:
     try:
         parsed = sa.engine.make_url(url)
@@ -52,6 +55,9 @@ def _engine(url: str) -> sa.Engine:
         raise HistoryError(f"--db {url}: not a database URL (e.g. sqlite:///history.sqlite, "
                            "postgresql+psycopg://user@host/db)") from None
     args = {}
+    if parsed.get_backend_name() not in BACKENDS:
+        raise HistoryError(f"--db {display(url)}: {parsed.get_backend_name()} is not a database the history runs on; "
+                           "give sqlite:///FILE or postgresql+psycopg://user@host/db")
     if parsed.drivername == "postgresql":  # SQLAlchemy's default driver is psycopg2; this package brings psycopg 3
         parsed = parsed.set(drivername="postgresql+psycopg")
     if parsed.get_backend_name() == "sqlite":
@@ -67,7 +73,10 @@ def _engine(url: str) -> sa.Engine:
         args["connect_args"] = {"connect_timeout": CONNECT_TIMEOUT_S}
     try:
         return sa.create_engine(parsed, **args)
-    except Exception as e:  # a dialect or driver that is not installed
+    except ImportError as e:  # a driver that is not installed
+        raise HistoryError(f"--db {display(url)}: its driver {e.name or ''} is not installed (for PostgreSQL give "
+                           "postgresql+psycopg://…, whose driver pip install -e '.[fleet]' brings)") from None
+    except Exception as e:  # a dialect SQLAlchemy does not know
         raise HistoryError(f"--db {display(url)}: {_why(e)}") from None
 
 

@@ -24,7 +24,8 @@ class HistoryWriter:
     Args:
       url: the database.
       log_path: the telemetry log whose rows these are.
-      say: where the one line about a database that cannot be used goes.
+      say: where the one warning about a database that cannot be used goes (it is given the text after
+        ``warning: ``).
     """
 
     def __init__(self, url: str, log_path: str, say: Callable[[str], None]):
@@ -37,7 +38,7 @@ class HistoryWriter:
 
     def _fail(self, e: HistoryError) -> None:
         self.failed = str(e)
-        self.say(f"warning: {e}; the run goes on without it (fill it in later: history --rebuild --log LOG "
+        self.say(f"{e}; the run goes on without it (fill it in later: history --rebuild --log LOG "
                  f"--db {display(self.url)})")
 
     def _run(self, log_path: str) -> None:

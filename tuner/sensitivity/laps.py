@@ -29,9 +29,10 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from twin.core.closed_loop import run_laps
+from twin.core.closed_loop import MAX_LAPS, run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapResult
+from tuner.search.space import TunerError
 from tuner.sensitivity.analysis import Analysis, analyse
 from tuner.sensitivity.ranges import Factor, default_factors
 
@@ -93,10 +94,53 @@ class LapModel:
         return fill_failed({o: np.array([row[o] for row in rows]) for o in OUTPUTS})
 
 
+PROBE_LAPS = 4  # laps timed to say how long a refused analysis would take
+
+
+def planned_laps(factors: int, samples: int, trajectories: int = TRAJECTORIES, max_sobol: int = MAX_SOBOL) -> int:
+    """Laps of an analysis at most: Morris' r (k + 1), then Saltelli's N (k' + 2) for the k' ≤ max_sobol factors
+    that matter."""
+    return trajectories * (factors + 1) + samples * (min(factors, max_sobol) + 2)
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 2 * 3600:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 2 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
+def check_size(twin: DigitalTwin, factors: Sequence[Factor], samples: int, trajectories: int = TRAJECTORIES,
+               max_sobol: int = MAX_SOBOL, nthread: int = 0) -> int:
+    """The analysis' laps at most, if within the :data:`twin.core.closed_loop.MAX_LAPS` a sweep may run too.
+
+    Raises:
+      TunerError: more laps than that: how many, and how long they would take on this machine (a few laps of this
+        twin, timed).
+    """
+    laps = planned_laps(len(factors), samples, trajectories, max_sobol)
+    if laps <= MAX_LAPS:
+        return laps
+    wall = time.perf_counter()
+    run_laps(twin, [{}] * PROBE_LAPS, seed=list(range(PROBE_LAPS)), nthread=nthread, keep_traces=False)
+    per_lap = (time.perf_counter() - wall) / PROBE_LAPS
+    fits = [n for n in (2**i for i in range(3, 31)) if planned_laps(len(factors), n, trajectories, max_sobol) <= MAX_LAPS]
+    advice = f"use --samples {fits[-1]} or fewer" if fits else "vary fewer parameters (--param)"
+    raise TunerError(f"--samples {samples}: the analysis of {len(factors)} parameters would run up to {laps:,} laps, "
+                     f"about {_duration(laps * per_lap)} on this machine ({per_lap * 1000:.0f} ms a lap, timed): more "
+                     f"than the {MAX_LAPS:,} laps a command may run (sweep's limit too); {advice}")
+
+
 def learn(twin: DigitalTwin, factors: Sequence[Factor] | None = None, samples: int = SAMPLES,
           trajectories: int = TRAJECTORIES, seed: int = 0, nthread: int = 0, max_sobol: int = MAX_SOBOL,
           on_stage: Callable[[str, int], None] | None = None, on_laps: Callable[[int], None] | None = None) -> Analysis:
     """Measure what governs the lap: :func:`tuner.sensitivity.analysis.analyse` over the twin's laps.
+
+    Raises:
+      TunerError: more laps than a sweep may run (:func:`check_size`).
 
     Args:
       factors: what to vary (default: :func:`tuner.sensitivity.ranges.default_factors`).
@@ -111,6 +155,7 @@ def learn(twin: DigitalTwin, factors: Sequence[Factor] | None = None, samples: i
     if factors is None:
         factors, left_out = default_factors(twin.space)
     twin.model()  # built before the clock starts: the build is not the analysis
+    check_size(twin, factors, samples, trajectories, max_sobol, nthread)
     model = LapModel(twin, seed, nthread, on_laps)
     wall, cpu = time.perf_counter(), time.process_time()
     result = analyse(factors, model, OUTPUTS, samples, trajectories, seed, max_sobol, on_stage)

@@ -29,7 +29,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from lf_common.files import GENERATOR, json_safe, output_dir  # noqa: E402
-from twin.core.closed_loop import run_laps  # noqa: E402
+from twin.core.closed_loop import MAX_LAPS, run_laps  # noqa: E402
 from twin.core.lap import LapLimits, LapResult  # noqa: E402
 from twin.core.digital_twin import DigitalTwin  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
@@ -37,7 +37,6 @@ from twin.pil import run_pil_lap  # noqa: E402
 from twin.pil.board import run_program_lap  # noqa: E402
 from twin.model.space import ChangeCost  # noqa: E402
 
-MAX_LAPS = 20_000  # one batch; ~0.3 MB of state per lap
 MAX_FIRMWARE_LAPS = 500  # laps on the emulated MCU, one after another: ~5 s each, under an hour
 
 

@@ -72,7 +72,10 @@ def run(args: argparse.Namespace) -> int:
             raise TwinError("--controller-fmu: the controller FMU drives instead of the firmware; leave out --firmware")
         controller = ControllerFmu(args.controller_fmu, parse_map(args.map), int(twin.space.get("sensor.count")),
                                    twin.space.get("control.dt"))
-        result = run_controller_lap(twin, controller, seed=args.seed, limits=limits, keep_trace=keep)
+        try:
+            result = run_controller_lap(twin, controller, seed=args.seed, limits=limits, keep_trace=keep)
+        finally:
+            controller.close()  # its process frees the FMU and ends
     elif args.firmware == "c":
         result = run_laps(twin, [{}], seed=args.seed, limits=limits, keep_traces=keep)[0]
     elif program is None:
@@ -154,5 +157,7 @@ def _say_board(out: Output, board: BoardReport) -> None:
     leds = board.led_summary(board.cycles / board.f_cpu_hz)["final"]
     out.say(f"LCD at the end: {final}; {len(board.lcd)} screens; buzzer: {len(board.notes)} notes; LEDs at the end: "
             f"red {'on' if leds['red'] else 'off'}, green {'on' if leds['green'] else 'off'}")
+    if line := board.resets_line():
+        out.say(line)
     for line in board.unmodelled:
         out.say(f"note: the program used a peripheral the board model does not connect: {line}")

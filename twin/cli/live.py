@@ -224,17 +224,18 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     with loading():
         from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display
         from tuner.live import LiveTwin, Worker, check_state, decode_line, feed_line, resume
-        from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, read_link
+        from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, breaks_path, read_link
 
     state = args.state or f"{args.log}.state.json"
     stats, signalled, gave_up, log_error = LinkStats(), [], None, None
     check_state(state)  # a file that is not a state of ours is refused before the log is even opened
     check_journal(actions_path(args.log))
+    ours = [f for f in (args.log, breaks_path(args.log), actions_path(args.log)) if not os.path.lexists(f)]
     log_file = DurableLog(args.log)  # locked, a cut-off last line marked: before anything reads it
     journal, actions, outbox, db = None, [], Outbox(), None
     try:
         journal = Journal(actions_path(args.log), os.path.basename(args.log))
-        db = HistoryWriter(args.db, args.log, out.say) if args.db else None
+        db = HistoryWriter(args.db, args.log, out.warn) if args.db else None
         actor = _actor(args, twin, options, outbox, journal, _action_printer(out, journal, rec, actions, db))
         live = LiveTwin(twin, options, state, on_lap, actor, _journal_record(journal, options.address, db))
         start_laps = resume(live, args.log)
@@ -275,20 +276,32 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
             journal.close()
         if db is not None:
             db.close()
+    if gave_up and not stats.opened and not start_laps:  # nothing was ever received: no empty files left behind
+        _remove(ours)
     summary = _summary(args, live, stats, start_laps, state, gave_up, signalled)
     summary["log_error"] = str(log_error) if log_error else None
     summary["actions"] = actions
     summary["changes"] = actor.summary() if actor is not None else []
-    summary["journal"] = os.path.abspath(journal.path)
+    summary["journal"] = os.path.abspath(journal.path) if os.path.exists(journal.path) else None
     summary["history"] = None if db is None else {"db": display(args.db), "written": db.written, "error": db.failed}
+    if not os.path.exists(args.log):
+        summary["log"] = None
+    kept = f"log {summary['log']}" if summary["log"] else "the link never opened: no log kept"
     out.say(f"{summary['laps']} laps ({summary['implausible_laps']} implausible), {stats.lines} lines "
             f"({stats.corrupted} corrupted), {stats.reconnects} reconnects; "
-            f"{options.address} = {summary['value'][options.address]:.5g}; log {summary['log']}")
+            f"{options.address} = {summary['value'][options.address]:.5g}; {kept}")
     if gave_up:
         out.say(f"exit status 1: {gave_up}")
     if signalled:
         return summary, EXIT_INTERRUPTED if signalled[0] == signal.SIGINT else EXIT_TERMINATED, log_error
     return summary, EXIT_NEGATIVE if gave_up else 0, log_error
+
+
+def _remove(paths: list[str]) -> None:
+    """Remove the files this run created (none of the user's: they did not exist before it)."""
+    for f in paths:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(f)
 
 
 def _stopper(args, live: LiveTwin, start_laps: int, signalled: list[int]):

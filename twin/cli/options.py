@@ -75,6 +75,10 @@ def deprecated(action: type[argparse.Action], new: str) -> type[argparse.Action]
 
 # --- value types: each refuses what makes no sense with a one-line usage error --------------------------
 
+def bound(x: float) -> str:  # a range's end: a whole number in full (1048576, not 1.04858e+06), else 12 digits
+    return str(int(x)) if math.isfinite(x) and float(x).is_integer() and abs(x) < 1e21 else f"{x:.12g}"
+
+
 def number(lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False, integer: bool = False):
     """An argparse type: a finite number in [lo, hi] (or (lo, hi] with ``lo_open``)."""
 
@@ -85,7 +89,7 @@ def number(lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False, i
             raise argparse.ArgumentTypeError(f"{text!r} is not {'a whole number' if integer else 'a number'}") from None
         if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
             left = "(" if lo_open else "["
-            raise argparse.ArgumentTypeError(f"{text!r} is outside {left}{lo:g}, {hi:g}]")
+            raise argparse.ArgumentTypeError(f"{text!r} is outside {left}{bound(lo)}, {bound(hi)}]")
         return v
 
     return parse
@@ -216,7 +220,7 @@ def keep_history(url: str | None, write, out) -> dict | None:
         finally:
             history.close()
     except HistoryError as e:
-        out.say(f"warning: {e}; the result stands")
+        out.warn(f"{e}; the result stands")
         return {"db": display(url), "error": str(e)}
 
 

@@ -17,6 +17,10 @@ class Output:
         """A human line: stdout, or stderr when stdout carries the JSON document."""
         print(text, file=sys.stderr if self.json_mode else sys.stdout, flush=True)
 
+    def warn(self, text: str) -> None:
+        """A warning line (``warning: …``): stderr always, so stdout keeps only the command's answer."""
+        print(f"warning: {text}", file=sys.stderr, flush=True)
+
     def document(self, doc: dict) -> None:
         """The command's JSON document (only with ``--json``): NaN and infinities become null."""
         if self.json_mode:

@@ -55,6 +55,7 @@ CALL_TICKS = 64 * CHUNK_TICKS
 MIN_CHUNK_TICKS = 10  # near the finish, chunks shrink to what could still finish the lap, but not below this
 SEED_SALT = 0x5DEECE66D  # mixes the user's seed into the C generator's state
 SEED_MAX = 2**64 - 1  # the C generator's state is a uint64
+MAX_LAPS = 20_000  # laps one command may ask for at most (a sweep's one batch, ~0.3 MB of state per lap; a learned graph)
 
 
 def run_laps(

@@ -16,11 +16,14 @@ import logging
 import os
 import re
 import tempfile
+import weakref
 import zipfile
 from typing import Mapping
 
+from lf_common.errors import LineFollowerError
+from lf_common.files import input_file
 from twin.errors import TwinError
-from twin.fmi.session import ControllerSession
+from twin.fmi.wall import ControllerHost, WalledController
 
 log = logging.getLogger(__name__)
 
@@ -104,8 +107,10 @@ def _fail(path: str, why: str) -> TwinError:
 
 def read_controller(path: str):
     """fmpy's model description of a controller FMU that this platform can run, or TwinError in one line."""
-    if not os.path.isfile(path):
-        raise _fail(path, "no such file")
+    try:
+        input_file(path, "file")  # a folder or a FIFO is not "no such file"
+    except LineFollowerError as e:
+        raise TwinError(f"--controller-fmu {e}") from None
     if not zipfile.is_zipfile(path):
         raise _fail(path, "not an FMU (not a zip archive)")
     from fmpy import read_model_description  # the loader (a dependency); imported when an FMU is used
@@ -205,7 +210,8 @@ class ControllerFmu:
         self.sample_time = float(step) if step not in (None, "") else float(control_dt)
         if not (self.sample_time > 0 and self.sample_time <= 1.0):
             raise _fail(path, f"its sample time {self.sample_time:g} s is outside (0, 1] s")
-        self._session = None
+        self._host: ControllerHost | None = None
+        self._finalizer = None
 
     def describe(self) -> dict:
         """What runs, for --json: the FMU, its version, sample time and the mapping used."""
@@ -213,6 +219,19 @@ class ControllerFmu:
                 "model_name": self.md.modelName, "inputs": dict(self.sense),
                 "outputs": {self.drive[p]: p for p in self.drive}, "actuation": self.actuation}
 
-    def start(self) -> ControllerSession:
-        """Instantiate and initialise the FMU at time 0; the session steps it (close it when done)."""
-        return ControllerSession(self)
+    def start(self) -> WalledController:
+        """One lap: a fresh instance of the FMU, instantiated and initialised at time 0 in the controller's own
+        process (started with the first lap, and again after a lap that ended in a fault), meanwhile the twin goes
+        on; the returned controller steps it (use it in a ``with`` block)."""
+        if self._host is None or not self._host.alive:
+            self._host = ControllerHost(self)
+            if self._finalizer is not None:
+                self._finalizer.detach()
+            self._finalizer = weakref.finalize(self, self._host.close)  # also at the interpreter's exit
+        return WalledController(self._host)
+
+    def close(self) -> None:
+        """End the controller's process (it frees the FMU) and remove its files; a later lap starts it again."""
+        if self._finalizer is not None:
+            self._finalizer()
+        self._host = self._finalizer = None

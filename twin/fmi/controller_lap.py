@@ -93,6 +93,11 @@ def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int =
     """
     check_seed(seed)
     _library()  # before any work: a stale build is one line
+    with controller.start() as session:  # its process loads the FMU while the twin builds and calibrates
+        return _calibrate_and_drive(twin, controller, session, seed, limits, keep_trace)
+
+
+def _calibrate_and_drive(twin, controller, session, seed: int, limits: LapLimits, keep_trace: bool) -> LapResult:
     model = twin.model()
     params, sensor, physics = twin.control_params(), twin.sensor_model(), twin.physics()
     values = dict(twin.space.values)
@@ -119,8 +124,8 @@ def run_controller_lap(twin: DigitalTwin, controller: ControllerFmu, seed: int =
     start_phase(sim, RUN)
     sim.magic = 0.0  # this loop owns the head: the control callback leaves it alone
     sim.firmware.dt_s = controller.sample_time  # ticks at the controller's sample times
-    with controller.start() as session:
-        _drive(model, data, sim, session, controller, judge, params.wheel_speed_max, physics.supply_voltage)
+    session.wait_ready()
+    _drive(model, data, sim, session, controller, judge, params.wheel_speed_max, physics.supply_voltage)
     return judge.result(params.count, lo, hi, values)
 
 
@@ -131,7 +136,7 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
     h0 = ctypes.c_double()
     period = controller.sample_time
     readers = _readers(sim, data)
-    used = [(port, readers[port]) for port in controller.sense.values()]
+    used = [readers[port] for port in session.ports]
     setpoint = controller.actuation == "setpoint"
     left_id, right_id = sim.actuator_left, sim.actuator_right
     chunk = CHUNK_TICKS * max(1, int(np.ceil(period / model.opt.timestep - 1e-9)))
@@ -145,7 +150,7 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
                 refused = True
                 break
             if due:
-                left, right = session.step(tick * period, period, {port: read() for port, read in used})
+                left, right = session.step(tick * period, period, [read() for read in used])
                 if setpoint:  # PWM duty of the no-load speed, as the firmware maps wheel speeds
                     left, right = (float(np.clip(w / full_speed, -1.0, 1.0)) * supply for w in (left, right))
                 data.ctrl[left_id], data.ctrl[right_id] = left, right

@@ -1,6 +1,7 @@
-"""One run of a controller FMU through fmpy: extracted to a temporary folder, instantiated and initialised at time 0,
-stepped tick by tick, freed and removed at :meth:`ControllerSession.close`. Its log goes to the
-``twin.fmi.controller`` logger; a failed call becomes one TwinError line with the FMU's last message."""
+"""One run of a controller FMU through fmpy: extracted to a folder (a temporary one unless given), instantiated and
+initialised at time 0, stepped tick by tick, freed (and a temporary folder removed) at :meth:`ControllerSession.close`.
+Its log goes to the ``twin.fmi.controller`` logger; a failed call becomes one TwinError line with the FMU's last
+message. It runs in the controller's own process (:mod:`twin.fmi.host`), behind the twin's wall."""
 
 from __future__ import annotations
 
@@ -26,21 +27,30 @@ def _text(b) -> str:
 
 
 class ControllerSession:
-    """A running controller FMU (see :class:`twin.fmi.controller.ControllerFmu`)."""
+    """A running controller FMU (see :class:`twin.fmi.controller.ControllerFmu`).
 
-    def __init__(self, controller):
+    Args:
+      controller: what runs: its ``path``, ``md`` (fmpy's model description), ``fmi_version``, ``sense`` ({FMU input:
+        twin port}) and ``drive`` ({twin drive port: FMU output}).
+      folder: an empty folder to extract the FMU into (the caller removes it); None: a temporary one.
+    """
+
+    def __init__(self, controller, folder: str | None = None):
         from fmpy import extract
-        from fmpy.fmi2 import FMU2Slave
-        from fmpy.fmi3 import FMU3Slave
 
         self.controller, self.path, self.version = controller, controller.path, controller.fmi_version
         self.messages: collections.deque[str] = collections.deque(maxlen=3)
         self.fmu = None
-        self._tmp = tempfile.TemporaryDirectory(prefix="twin-controller-")
+        self._tmp = None if folder else tempfile.TemporaryDirectory(prefix="twin-controller-")
         md = controller.md
         try:
-            folder = extract(self.path, unzipdir=self._tmp.name)
-            cls, token = (FMU2Slave, md.guid) if self.version == 2 else (FMU3Slave, md.instantiationToken)
+            folder = extract(self.path, unzipdir=folder or self._tmp.name)
+            if self.version == 2:
+                from fmpy.fmi2 import FMU2Slave as cls
+                token = md.guid
+            else:
+                from fmpy.fmi3 import FMU3Slave as cls
+                token = md.instantiationToken
             self.fmu = cls(guid=token, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
                            instanceName="controller")
             if self.version == 2:
@@ -130,7 +140,8 @@ class ControllerSession:
                 fmu.freeInstance()
             except Exception:
                 pass
-        self._tmp.cleanup()
+        if self._tmp is not None:
+            self._tmp.cleanup()
 
     def __enter__(self) -> "ControllerSession":
         return self

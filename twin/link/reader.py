@@ -63,6 +63,7 @@ class LinkStats:
     lines: int = 0  # lines received and logged (a line cut off by a drop counts, as a corrupted one)
     corrupted: int = 0  # lines that did not decode, were too long, or were cut off
     reconnects: int = 0  # failed opens and drops
+    opened: int = 0  # times the link opened
     robot_laps: int = 0  # LAP and FAIL events received
     implausible_laps: int = 0  # laps that failed the plausibility checks (see twin.telemetry.laps)
 
@@ -178,6 +179,7 @@ def read_link(url: str, out: DurableLog, on_line: Callable[[bytes], bool], on_id
             backoff.failed(url, _first_line(e), stop)
             continue
         backoff.opened()
+        stats.opened += 1
         lines, dropped = LineSplitter(), None
         try:
             _read_open_port(port, out, lines, on_line, on_idle, stats, stop, backoff, outbox)

@@ -110,6 +110,8 @@ def _load_elf(path: str) -> Program:
             symbols = {s.name: int(s["st_value"]) for s in symtab.iter_symbols() if s.name} if symtab else {}
             sizes = {s.name: int(s["st_size"]) for s in symtab.iter_symbols() if s.name} if symtab else {}
             section = {s.name: s["sh_size"] for s in elf.iter_sections()}
+    except TwinError:  # (a ValueError too) said what is wrong with a readable ELF: as it is
+        raise
     except (ELFError, struct.error, ValueError, KeyError, IndexError) as e:
         raise TwinError(f"{path}: not a readable ELF file ({e}); {TAKES}") from None
     except OSError as e:

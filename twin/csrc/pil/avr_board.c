@@ -170,6 +170,15 @@ static void on_peripheral_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void 
   a->board.used |= used;
 }
 
+/* simavr's avr_reset calls every I/O module's reset hook: after power-up only the watchdog resets the 3pi's MCU
+ * (no reset button is pressed, no brown-out is modelled), so this counts the program's watchdog resets. */
+static void on_reset(avr_io_t *io) {
+  lf_avr *a = ((lf_reset_watch *)io)->a;
+  lf_board *b = &a->board;
+  if (!b->resets) b->first_reset = a->avr->cycle;
+  b->resets++, b->last_reset = a->avr->cycle;
+}
+
 void pil_connect_board(lf_avr *a) {
   static const uint16_t timer1[] = {TCCR1A, TCCR1B, ICR1L, OCR1AL, OCR1BL};
   static const uint16_t watched[] = {SPCR, TWCR, ADCSRA, UCSR0B, ACSR, TIMSK1, EIMSK};
@@ -180,6 +189,10 @@ void pil_connect_board(lf_avr *a) {
   avr_irq_register_notify(avr_io_getirq(a->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), IOPORT_IRQ_REG_PORT), on_port_b, a);
   for (i = 0; i < sizeof timer1 / sizeof timer1[0]; i++) pil_watch_write(a, timer1[i], on_timer1_write, 0);
   for (i = 0; i < sizeof watched / sizeof watched[0]; i++) pil_watch_write(a, watched[i], on_peripheral_write, 0);
+  a->board.reset_watch.io.kind = "lf_reset_count";
+  a->board.reset_watch.io.reset = on_reset;
+  a->board.reset_watch.a = a;
+  avr_register_io(a->avr, &a->board.reset_watch.io); /* after avr_init: power-up's own reset is not counted */
 }
 
 /* --- the physics trace */
@@ -216,6 +229,7 @@ void lf_avr_board_status(const lf_avr *a, lf_board_status *out) {
   *out = b->lost;
   out->last_poll = b->last_poll, out->polls = b->polls, out->last_drive = b->last_drive, out->used = b->used;
   out->buttons = b->buttons, out->red = b->led_shown[0], out->green = b->led_shown[1];
+  out->resets = b->resets, out->first_reset = b->first_reset, out->last_reset = b->last_reset;
   if (b->sounding) out->note = b->note;
   else memset(&out->note, 0, sizeof out->note);
 }

@@ -124,7 +124,15 @@ typedef struct {
   int32_t red, green;      /* LEDs now */
   lf_note note;            /* the note sounding now (end 0), if start != 0 */
   int64_t frames_lost, notes_lost, leds_lost; /* events not kept because Python had not drained them */
+  int64_t resets;          /* MCU resets after power-up: on this board only its watchdog resets it */
+  uint64_t first_reset, last_reset; /* their cycles */
 } lf_board_status;
+
+/* An I/O module of ours whose only job is simavr's reset hook (avr_board.c): io first, as simavr's modules have it. */
+typedef struct {
+  avr_io_t io;
+  struct lf_avr *a;
+} lf_reset_watch;
 
 typedef struct {
   /* HD44780 */
@@ -160,6 +168,9 @@ typedef struct {
   int32_t have_prev;
   lf_board_status lost;    /* only the *_lost counters are used */
   uint32_t used;
+  lf_reset_watch reset_watch; /* counts the resets after power-up */
+  int64_t resets;
+  uint64_t first_reset, last_reset;
 } lf_board;
 
 /* A write hook chained after what simavr already does at an I/O address (simavr's own chaining has four slots). */

@@ -36,6 +36,8 @@ class BoardReport:
     uart_lines: int
     unmodelled: tuple[str, ...]
     events_lost: int
+    resets: int  # MCU resets after power-up: on the 3pi only its watchdog resets it (the program restarting itself)
+    reset_span_s: tuple[float, float] | None  # the first and the last of them [s since power-up]
 
     @classmethod
     def of(cls, log: BoardLog, **fields) -> "BoardReport":
@@ -73,4 +75,15 @@ class BoardReport:
             "notes": [{"start": a, "end": b, "hz": hz, "duty": duty} for a, b, hz, duty in self.notes],
             "leds": self.led_summary(end_s), "uart_lines": self.uart_lines, "unmodelled": list(self.unmodelled),
             "events_lost": self.events_lost,
+            "resets": {"count": self.resets, "by": "watchdog", "first_s": self.reset_span_s[0],
+                       "last_s": self.reset_span_s[1]} if self.resets else {"count": 0},
         }
+
+    def resets_line(self) -> str | None:
+        """What the resets say, or None without any."""
+        if not self.resets:
+            return None
+        first, last = self.reset_span_s
+        every = f", every {(last - first) / (self.resets - 1) * 1000:.3g} ms on average" if self.resets > 1 else ""
+        return (f"MCU resets: {self.resets} by its watchdog (first {first:.3f} s, last {last:.3f} s after power-up"
+                f"{every}): the program restarts itself")
