@@ -5,7 +5,9 @@ the start line (the sensor library's procedure, the same turn bit for bit), the 
 with that calibration, and then the controller FMU drives. Each physics step runs as ``mj_step`` runs the control
 callback (``mj_step1``, the loop's work, ``mj_step2``); at each of the controller's sample times the C core reads the
 sensors and runs the firmware's sensor side (``lf_external_step``: Eqs. 8–9), the FMU steps from t to t + T on those
-values, and its outputs drive the motors from t on. The head of this loop carries no mark, so the control callback
+values, and its outputs reach the motors as the firmware's would on the same robot: with the robot's timing
+(``timing.*``: the read's duration, ``timing.compute``, the PWM's whole counts; set ``timing.compute`` to the
+controller's own compute time on the robot's MCU). The head of this loop carries no mark, so the control callback
 leaves it alone. The lap is judged as every lap is (:class:`twin.core.lap.LapJudge`).
 """
 
@@ -40,8 +42,10 @@ def _library() -> ctypes.CDLL:
         raise TwinError("twin.core._lfcore is out of date (no lf_external_step); rebuild it with pip install -e .") \
             from None
     lib.lf_external_step.restype = ctypes.c_int32
-    lib.lf_sense_record.argtypes = [_P, _P, _P, ctypes.c_double]
-    lib.lf_sense_record.restype = None
+    lib.lf_external_command.argtypes = [_P, _P, _P, ctypes.c_double, ctypes.c_double, ctypes.c_double]
+    lib.lf_external_command.restype = None
+    lib.lf_external_drive.argtypes = [_P, _P]
+    lib.lf_external_drive.restype = None
     return lib
 BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
 
@@ -138,7 +142,6 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
     readers = _readers(sim, data)
     used = [readers[port] for port in session.ports]
     setpoint = controller.actuation == "setpoint"
-    left_id, right_id = sim.actuator_left, sim.actuator_right
     chunk = CHUNK_TICKS * max(1, int(np.ceil(period / model.opt.timestep - 1e-9)))
     tick = consumed = 0
     while not judge.done:
@@ -153,9 +156,9 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
                 left, right = session.step(tick * period, period, [read() for read in used])
                 if setpoint:  # PWM duty of the no-load speed, as the firmware maps wheel speeds
                     left, right = (float(np.clip(w / full_speed, -1.0, 1.0)) * supply for w in (left, right))
-                data.ctrl[left_id], data.ctrl[right_id] = left, right
-                lib.lf_sense_record(mp, dp, sp, h0.value)
+                lib.lf_external_command(mp, dp, sp, left, right, h0.value)  # they reach the motors with the robot's timing
                 tick += 1
+            lib.lf_external_drive(dp, sp)
             mujoco.mj_step2(model, data)
         core.flush_mujoco_log()
         if _diverged(data):

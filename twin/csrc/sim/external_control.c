@@ -23,3 +23,15 @@ int32_t lf_external_step(const mjModel *m, mjData *d, lf_sim *s, double *height0
   *height0 = lf_sense(m, d, s);
   return 1;
 }
+
+void lf_external_command(const mjModel *m, const mjData *d, lf_sim *s, double u_left_v, double u_right_v,
+                         double height0) {
+  lf_decide(d, s, u_left_v / s->supply_voltage, u_right_v / s->supply_voltage, lf_read_time_us(s, 1));
+  s->ticks++;
+  if (s->fw.tick < LF_TICKS_MAX) s->fw.tick++;
+  lf_write_record(m, d, s, s->fw.mode, height0, u_left_v, u_right_v);
+}
+
+void lf_external_drive(mjData *d, lf_sim *s) {
+  if (s->error == LF_OK) lf_drive(d, s, d->ctrl + s->actuator_left, d->ctrl + s->actuator_right);
+}

@@ -177,7 +177,7 @@ static double read_sensors(const mjModel *m, const mjData *d, lf_sim *s, int32_t
 }
 
 void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0) {
-  *height0 = read_sensors(m, d, s, 1, 0.0, tan(s->sensor.half_angle_rad));
+  *height0 = read_sensors(m, d, s, 1, s->timing.release_us * 1e-6, tan(s->sensor.half_angle_rad)); /* at the release */
 }
 
 /* Squared distance from (x, y) to segment i (vertex i to i+1, closing the loop); t: where along it [0, 1]. */
@@ -287,7 +287,7 @@ int32_t lf_ready(const mjModel *m, lf_sim *s) {
 /* `reads` reads' duration [us]: each lasts until its last line has fallen (its raw reading, which the timeout caps),
  * as the robot's QTR-RC read waits for every line; the calibration's reads before the last are the same light path
  * with their own noise, so they are taken as long as the last. */
-static double read_time_us(const lf_sim *s, int32_t reads) {
+double lf_read_time_us(const lf_sim *s, int32_t reads) {
   double longest = 0.0;
   int32_t i;
   for (i = 0; i < s->nsensor; i++) longest = fmax(longest, (double)s->raw[i]);
@@ -306,17 +306,17 @@ static double pwm_duty(const lf_timing *t, double duty) {
 
 /* The duties a tick decided wait until the robot would write them: the tick, the release, the read, the compute. A
  * duty still waiting when the next tick comes is taken first (the MCU finishes a tick before it starts the next). */
-static void decide(const mjData *d, lf_sim *s, double read_us) {
+void lf_decide(const mjData *d, lf_sim *s, double duty_left, double duty_right, double read_us) {
   if (s->pending) s->duty_now[0] = s->duty_next[0], s->duty_now[1] = s->duty_next[1];
-  s->duty_next[0] = pwm_duty(&s->timing, s->fw.duty_left);
-  s->duty_next[1] = pwm_duty(&s->timing, s->fw.duty_right);
+  s->duty_next[0] = pwm_duty(&s->timing, duty_left);
+  s->duty_next[1] = pwm_duty(&s->timing, duty_right);
   s->apply_time_s = d->time + (s->timing.release_us + read_us + s->timing.compute_us) * 1e-6;
   s->pending = 1;
 }
 
 /* The motors' voltages over the step beginning now: the duties in force, blended over the step in which new ones take
  * effect (their mean over the step, as a PWM the MCU rewrites mid-step drives it: twin/csrc/pil/avr_motors.c). */
-static void drive(const mjData *d, lf_sim *s, double *u_left_v, double *u_right_v) {
+void lf_drive(const mjData *d, lf_sim *s, double *u_left_v, double *u_right_v) {
   double old_share = 0.0; /* of the step still on duty_now */
   if (s->pending) {
     old_share = (s->apply_time_s - d->time) / s->timestep;
@@ -346,7 +346,7 @@ void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
     reads = s->fw.mode == LF_CALIBRATE ? LF_CAL_READS : 1;
     height0 = read_sensors(m, d, s, reads, s->timing.release_us * 1e-6, tan_half);
     lf_step(&s->fw, &s->firmware, s->raw);
-    decide(d, s, read_time_us(s, reads));
+    lf_decide(d, s, s->fw.duty_left, s->fw.duty_right, lf_read_time_us(s, reads));
     s->ticks++;
     /* the record keeps the voltages the firmware commands; the motors take them when drive() says */
     lf_write_record(m, d, s, mode, height0, s->fw.duty_left * s->supply_voltage, s->fw.duty_right * s->supply_voltage);
@@ -359,7 +359,7 @@ void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
       }
     }
   }
-  drive(d, s, d->ctrl + s->actuator_left, d->ctrl + s->actuator_right);
+  lf_drive(d, s, d->ctrl + s->actuator_left, d->ctrl + s->actuator_right);
 }
 
 void lf_control_callback(const mjModel *m, mjData *d) {

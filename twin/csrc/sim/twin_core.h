@@ -130,6 +130,12 @@ int32_t lf_ready(const mjModel *m, lf_sim *s);  /* lf_set_ray was called and the
 void lf_integrate_energy(const mjModel *m, const mjData *d, lf_sim *s); /* motors' energy up to d->time */
 int32_t lf_tick_due(const mjData *d, const lf_sim *s);                  /* a control tick is due at d->time */
 void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0); /* every sensor's raw reading */
+/* The robot's timing (lf_timing): how long `reads` reads of every sensor last, the slowest line's raw reading each
+ * [us]; a tick's duties in [-1, 1], which take effect release + read_us + compute after d->time, at the PWM's whole
+ * counts; and every step, the voltages the motors see over the step beginning at d->time [V]. */
+double lf_read_time_us(const lf_sim *s, int32_t reads);
+void lf_decide(const mjData *d, lf_sim *s, double duty_left, double duty_right, double read_us);
+void lf_drive(const mjData *d, lf_sim *s, double *u_left_v, double *u_right_v);
 #endif
 
 #endif
