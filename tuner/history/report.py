@@ -40,12 +40,12 @@ def robot_laps(c, robot_id: int) -> tuple[list[dict], dict]:
     logs: dict[str, list[dict]] = {}
     for r in runs:
         logs.setdefault(r["log_path"] or r["source"], []).append(r)
-    order = sorted(logs, key=lambda k: min((r["started"] or math.inf) for r in logs[k]))
+    order = sorted(logs, key=lambda k: (min((r["started"] or math.inf) for r in logs[k]), k))  # ties: by the log
     laps, offsets, base = [], {}, 0
     for key in order:
         ids = [r["id"] for r in logs[key]]
         rows = [dict(x._mapping) for x in c.execute(sa.select(s.laps).where(s.laps.c.run_id.in_(ids))
-                                                    .order_by(s.laps.c.lap))]
+                                                    .order_by(s.laps.c.lap, s.laps.c.source))]
         for r in logs[key]:
             offsets[r["id"]] = base
         for row in rows:
@@ -66,20 +66,31 @@ def _changes(c, robot_id: int, offsets: dict) -> list[dict]:
                 d[k] += base
         out.append({k: d[k] for k in ("seq", "kind", "status", "decided_lap", "first_lap", "gains", "reason",
                                       "predicted_lap_time_s", "nak_reason", "outcome")})
-    return out
+    # in the order of the robot's laps (not of the rows), whatever order the logs were rebuilt in
+    return sorted(out, key=lambda ch: (math.inf if ch["decided_lap"] is None else ch["decided_lap"], ch["seq"],
+                                       math.inf if ch["first_lap"] is None else ch["first_lap"], ch["status"]))
 
 
 def _alignments(c, robot_id: int, offsets: dict) -> list[dict]:
-    rows = c.execute(sa.select(s.alignments).where(s.alignments.c.robot_id == robot_id).order_by(s.alignments.c.id))
+    """The robot's alignments in the order of the laps they measured (ties: by address, then value), whatever the
+    order their rows were written in: a rebuild of the logs in any order gives the same list."""
+    rows = c.execute(sa.select(s.alignments).where(s.alignments.c.robot_id == robot_id))
     out = []
     for r in rows:
         d = dict(r._mapping)
         if d["lap"] is None:
             continue  # an alignment of the twin alone (align): no place among the robot's laps
-        out.append({"lap": d["lap"] + offsets.get(d["run_id"], 0), "address": d["address"], "value": d["value"],
+        base = offsets.get(d["run_id"], 0)
+        first = d["first_lap"] if d["first_lap"] is not None else d["lap"]
+        out.append({"lap": d["lap"] + base, "first_lap": first + base, "address": d["address"], "value": d["value"],
                     "interval": [d["lo"], d["hi"]] if d["lo"] is not None else None, "explained": d["explained"],
-                    "measured_lap_time_s": d["measured_lap_time_s"]})
-    return out
+                    "estimated": bool(d["estimated"]), "measured_lap_time_s": d["measured_lap_time_s"]})
+    return sorted(out, key=_lap_order)
+
+
+def _lap_order(a: dict) -> tuple:
+    return (a["lap"], a["first_lap"], a["address"], a["value"] is None, a["value"] or 0.0,
+            a["interval"] or (), a["explained"], a["estimated"], a["measured_lap_time_s"] or 0.0)
 
 
 def gains_in_force(laps: list[dict], changes: list[dict]) -> dict | None:
