@@ -198,19 +198,32 @@ def test_the_same_migrations_and_rows_on_postgresql(tmp_path, postgres):  # noqa
     assert dump(url) == dump(lite)
 
 
-def test_the_forecast_races_the_gains_along_the_trend():
+def test_the_forecast_filters_the_evidence_and_races_the_gains_on_the_twin():
+    """Grip aligned exactly on a straight line, 0.9 − 0.005·lap (laps 4-5, 14-15, 24-25), every lap finished on the
+    plain gains: the twin fails them somewhere below μ ≈ 0.75 (test_act's premise); with no scatter the straight
+    line's own crossing, (0.775 − threshold)/0.005 laps after lap 25, must lie inside the stated 90 % interval and
+    near its median; the advice and the statement come from that distribution."""
     twin = DigitalTwin()
     twin.model()
-    alignments = [{"lap": lap, "address": "motion.mu", "explained": True, "value": 0.9 - 0.005 * lap,
-                   "interval": [0.9 - 0.005 * lap - 0.005, 0.9 - 0.005 * lap + 0.005]} for lap in (5, 15, 25)]
-    t = trend_of(alignments, "motion.mu")
-    assert t.slope == pytest.approx(-0.005) and t.slope_se > 0
-    f = forecast_failure(twin, PLAIN, t, now_lap=25, seeds=2)
-    # the plain gains lose the line somewhere below μ ≈ 0.75 on some seed (test_act's premise), not at 0.775
+    alignments = [{"first_lap": lap - 1, "lap": lap, "address": "motion.mu", "explained": True,
+                   "value": 0.9 - 0.005 * (lap - 0.5), "interval": [0.9 - 0.005 * lap - 0.005, 0.9 - 0.005 * lap + 0.005]}
+                  for lap in (5, 15, 25)]
+    laps = [{"n": n, "completed": True, "gains": PLAIN} for n in range(26)]
+    f = forecast_failure(twin, PLAIN, alignments, laps, "motion.mu", now_lap=25, seeds=2)
     assert f.failing_value is not None and 0.55 < f.failing_value < 0.775
-    assert f.laps_to_failure == pytest.approx((f.failing_value - 0.775) / -0.005)
-    assert f.interval[0] <= f.laps_to_failure <= f.interval[1]
+    straight = (0.775 - f.failing_value) / 0.005
+    lo, hi = f.interval
+    assert lo <= straight <= hi and abs(f.laps_to_failure - straight) <= max(2.0, 0.15 * straight)
+    assert f.quantiles["5"] == lo and f.quantiles["95"] == hi and f.quantiles["50"] == f.laps_to_failure
+    assert f.statement == (f"the gains in force stop finishing in about {f.laps_to_failure:.0f} laps (90 % between "
+                           f"{lo:.0f} and {hi:.0f})")
+    assert f.evidence == {"alignments": 3, "laps": 26, "failed": 0}
     assert any("replace the tyres" in a for a in f.advice)
+    again = forecast_failure(twin, PLAIN, alignments[::-1], laps, "motion.mu", now_lap=25, seeds=2)
+    assert again == f  # bit for bit, whatever the order the evidence comes in
+    one = forecast_failure(twin, PLAIN, alignments[:1], laps, "motion.mu", now_lap=25, seeds=2)
+    assert one.laps_to_failure is None and one.interval is None and "too little evidence" in one.statement
+    assert one.laps == 0  # nothing raced on too little evidence
 
 
 def test_a_rebuild_gives_the_same_history_whatever_the_order_the_logs_arrive_in(tmp_path):
@@ -236,3 +249,29 @@ def test_a_rebuild_gives_the_same_history_whatever_the_order_the_logs_arrive_in(
     assert [(a["first_lap"], a["lap"], a["value"]) for a in robot["alignments"]] == [
         (0, 1, 0.8), (6, 7, 0.75), (12, 13, 0.7)]
     assert robot["trends"]["motion.mu"]["slope"] == pytest.approx(-0.05 / 6)
+
+
+def test_bad_history_input_is_one_line_and_no_number(tmp_path, capsys):
+    """An empty history and a database of another program: one error line, exit 2. One alignment: the forecast
+    says there is too little evidence and gives no number (nothing is raced)."""
+    empty = sqlite(tmp_path, "empty.sqlite")
+    History(empty).close()
+    foreign = tmp_path / "theirs.sqlite"
+    engine = sa.create_engine(f"sqlite:///{foreign}")
+    with engine.begin() as c:
+        c.execute(sa.text("CREATE TABLE orders (id INTEGER)"))
+    engine.dispose()
+    for url in (empty, f"sqlite:///{foreign}"):
+        capsys.readouterr()
+        assert main(["history", "--db", url, "--json"]) == 2
+        out, err = capsys.readouterr()
+        assert out == "" and err.count("\n") == 1 and err.startswith("error: --db"), err
+    one = sqlite(tmp_path, "one.sqlite")
+    h = History(one)
+    rebuild_log(h, session_files(str(tmp_path)))
+    h.close()
+    capsys.readouterr()
+    assert main(["history", "--db", one, "--json"]) == 0
+    f = json.loads(capsys.readouterr().out)["robots"][0]["forecast"]
+    assert f["laps_to_failure"] is None and f["interval"] is None and f["quantiles"] is None and f["laps"] == 0
+    assert f["statement"].startswith("too little evidence") and not any(ch.isdigit() for ch in f["statement"].split(":")[0])

@@ -102,6 +102,13 @@ def gains_in_force(laps: list[dict], changes: list[dict]) -> dict | None:
     return done[-1]["gains"] if done else None
 
 
+def _soonest(forecasts):
+    """The forecast of the parameter that fails the gains first (by median; one with a number before one
+    without)."""
+    ranked = sorted(forecasts, key=lambda f: (f.laps_to_failure is None, f.laps_to_failure or 0.0, f.address))
+    return ranked[0] if ranked else None
+
+
 def report(history: History, twin: DigitalTwin | None, name: str | None = None, seed: int = 0) -> list[dict]:
     """Per robot: laps, changes, trends and (with a ``twin``) the forecast and advice."""
     out = []
@@ -124,9 +131,13 @@ def report(history: History, twin: DigitalTwin | None, name: str | None = None, 
             entry["trends"][address] = t.summary() if t else None
         gains = gains_in_force(laps, changes)
         entry["gains_in_force"] = gains
-        trends = [t for t in (trend_of(aligned, a, TREND_POINTS) for a in entry["trends"]) if t is not None]
-        if twin is not None and trends and gains and laps:
-            f = forecast_failure(twin, gains, trends[0], laps[-1]["n"], seed=seed)
-            entry["forecast"], entry["advice"] = f.summary(), list(f.advice)
+        if twin is not None and gains and laps:
+            entry["forecasts"] = {a: forecast_failure(twin, gains, aligned, laps, a, laps[-1]["n"], seed=seed)
+                                  for a in sorted(entry["trends"])}
+            f = _soonest(entry["forecasts"].values())
+            entry["causes_tracked"] = sorted(entry["forecasts"])
+            entry["forecasts"] = {a: x.summary() for a, x in entry["forecasts"].items()}
+            if f is not None:
+                entry["forecast"], entry["advice"] = f.summary(), list(f.advice)
         out.append(entry)
     return out

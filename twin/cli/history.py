@@ -79,6 +79,9 @@ def run(args: argparse.Namespace) -> int:
         entries = report(history, twin, args.robot_id, args.seed)
     finally:
         history.close()
+    if not entries:
+        raise TwinError(f"--db {display(args.db)}: the history holds no robot yet (live, lap, tune and align write "
+                        "one with --db)")
     charts = []
     if args.out_dir:
         with output_dir(args.out_dir, "history folder") as tmp:
@@ -107,19 +110,18 @@ def _say(out: Output, e: dict) -> None:
     for ch in e["changes"]:
         out.say(f"  gains #{ch['seq']} ({ch['kind']}, decided at lap {ch['decided_lap']}): {ch['status']}"
                 + (f" — {ch['outcome']}" if ch["outcome"] else ""))
-    for address, t in e["trends"].items():
-        if t:
-            out.say(f"  {address}: {t['slope']:+.3g} per lap (± {1.96 * t['slope_se']:.2g}, 95 %) over "
-                    f"{t['points']} alignments, {t['intercept'] + t['slope'] * t['last_lap']:.4g} at lap {t['last_lap']}")
+    for address, f in (e.get("forecasts") or {}).items():
+        if f["rate"] is not None:
+            lo, mid, hi = f["rate"]
+            out.say(f"  {address}: {f['value_now']:.4g} at lap {f['now_lap']}, {mid:+.3g} per lap (90 %: {lo:+.3g} to "
+                    f"{hi:+.3g}), from {f['evidence']['alignments']} alignments and {f['evidence']['laps']} laps")
+    if len(e.get("causes_tracked") or ()) > 1:
+        out.say(f"  causes tracked: {', '.join(e['causes_tracked'])} (each on its own: the forecast is the soonest)")
     f = e["forecast"]
     if f:
-        if f["laps_to_failure"] is None:
-            out.say(f"  forecast: {f['note']}")
-        else:
-            lo, hi = f["interval"]
-            hi_s = "∞" if hi is None else f"{hi:.0f}"
-            out.say(f"  forecast: {f['note']}: in {f['laps_to_failure']:.0f} laps (95 %: {lo:.0f}–{hi_s}) from lap "
-                    f"{f['now_lap']}")
+        out.say(f"  forecast (from lap {f['now_lap']}): {f['statement']}")
+        if f["raced"] is not None:  # what it rests on (nothing was raced on too little evidence)
+            out.say(f"    {f['note']}")
     for a in e["advice"]:
         out.say(f"  advice: {a}")
 
