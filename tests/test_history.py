@@ -272,6 +272,8 @@ def test_bad_history_input_is_one_line_and_no_number(tmp_path, capsys):
     h.close()
     capsys.readouterr()
     assert main(["history", "--db", one, "--json"]) == 0
-    f = json.loads(capsys.readouterr().out)["robots"][0]["forecast"]
+    robot = json.loads(capsys.readouterr().out)["robots"][0]
+    f = robot["forecast"]
+    assert robot["causes_tracked"] == ["motion.mu"] and "cannot tell them apart" in robot["causes_note"]
     assert f["laps_to_failure"] is None and f["interval"] is None and f["quantiles"] is None and f["laps"] == 0
     assert f["statement"].startswith("too little evidence") and not any(ch.isdigit() for ch in f["statement"].split(":")[0])

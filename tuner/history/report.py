@@ -84,12 +84,13 @@ def _alignments(c, robot_id: int, offsets: dict) -> list[dict]:
         first = d["first_lap"] if d["first_lap"] is not None else d["lap"]
         out.append({"lap": d["lap"] + base, "first_lap": first + base, "address": d["address"], "value": d["value"],
                     "interval": [d["lo"], d["hi"]] if d["lo"] is not None else None, "explained": d["explained"],
-                    "estimated": bool(d["estimated"]), "measured_lap_time_s": d["measured_lap_time_s"]})
+                    "estimated": bool(d["estimated"]), "measured_lap_time_s": d["measured_lap_time_s"],
+                    "identifiable": d["identifiable"]})
     return sorted(out, key=_lap_order)
 
 
 def _lap_order(a: dict) -> tuple:
-    return (a["lap"], a["first_lap"], a["address"], a["value"] is None, a["value"] or 0.0,
+    return (a["lap"], a["first_lap"], a["address"], a["value"] is None, a["value"] or 0.0, str(a["identifiable"]),
             a["interval"] or (), a["explained"], a["estimated"], a["measured_lap_time_s"] or 0.0)
 
 
@@ -100,6 +101,22 @@ def gains_in_force(laps: list[dict], changes: list[dict]) -> dict | None:
             return {a: row["gains"][a] for a in GAIN_ADDRESSES if a in row["gains"]}
     done = [ch for ch in changes if ch["status"] in ("confirmed", "in_force")]
     return done[-1]["gains"] if done else None
+
+
+def causes_note(tracked: list[str], aligned: list[dict]) -> str:
+    """Which causes the forecast tracks, and what the evidence cannot tell apart."""
+    if not tracked:
+        return "no cause tracked: nothing was aligned"
+    unsure = sorted({a["address"] for a in aligned if a.get("identifiable") is False and not a.get("estimated")})
+    said = f"tracks {', '.join(tracked)}"
+    if len(tracked) == 1:
+        said += (f": a lap time is explained by one parameter, so another cause of slower laps (a tired battery, a "
+                 f"warm motor) is read as a change of {tracked[0]}: the evidence cannot tell them apart")
+    else:
+        said += ": each on its own (the forecast is the soonest)"
+    if unsure:
+        said += f"; some alignments of {', '.join(unsure)} say other values explain the laps as well"
+    return said
 
 
 def _soonest(forecasts):
@@ -136,6 +153,7 @@ def report(history: History, twin: DigitalTwin | None, name: str | None = None, 
                                   for a in sorted(entry["trends"])}
             f = _soonest(entry["forecasts"].values())
             entry["causes_tracked"] = sorted(entry["forecasts"])
+            entry["causes_note"] = causes_note(entry["causes_tracked"], aligned)
             entry["forecasts"] = {a: x.summary() for a, x in entry["forecasts"].items()}
             if f is not None:
                 entry["forecast"], entry["advice"] = f.summary(), list(f.advice)

@@ -115,8 +115,8 @@ def _say(out: Output, e: dict) -> None:
             lo, mid, hi = f["rate"]
             out.say(f"  {address}: {f['value_now']:.4g} at lap {f['now_lap']}, {mid:+.3g} per lap (90 %: {lo:+.3g} to "
                     f"{hi:+.3g}), from {f['evidence']['alignments']} alignments and {f['evidence']['laps']} laps")
-    if len(e.get("causes_tracked") or ()) > 1:
-        out.say(f"  causes tracked: {', '.join(e['causes_tracked'])} (each on its own: the forecast is the soonest)")
+    if e.get("causes_note"):
+        out.say(f"  causes: {e['causes_note']}")
     f = e["forecast"]
     if f:
         out.say(f"  forecast (from lap {f['now_lap']}): {f['statement']}")
