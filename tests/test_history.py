@@ -200,28 +200,30 @@ def test_the_same_migrations_and_rows_on_postgresql(tmp_path, postgres):  # noqa
 
 def test_the_forecast_filters_the_evidence_and_races_the_gains_on_the_twin():
     """Grip aligned exactly on a straight line, 0.9 − 0.005·lap (laps 4-5, 14-15, 24-25), every lap finished on the
-    plain gains: the twin fails them somewhere below μ ≈ 0.75 (test_act's premise); with no scatter the straight
-    line's own crossing, (0.775 − threshold)/0.005 laps after lap 25, must lie inside the stated 90 % interval and
-    near its median; the advice and the statement come from that distribution."""
+    plain gains: the twin fails them somewhere below μ ≈ 0.75 (test_act's premise), gradually (a lap fails more
+    often the lower μ is). The straight line reaches the value where half the twin's laps fail (0.775 − edge)/0.005
+    laps after lap 25: that lies inside the stated 90 % interval, and the median comes no later (a first failure
+    comes before half the laps fail); the advice and the statement come from that distribution."""
     twin = DigitalTwin()
     twin.model()
     alignments = [{"first_lap": lap - 1, "lap": lap, "address": "motion.mu", "explained": True,
                    "value": 0.9 - 0.005 * (lap - 0.5), "interval": [0.9 - 0.005 * lap - 0.005, 0.9 - 0.005 * lap + 0.005]}
                   for lap in (5, 15, 25)]
     laps = [{"n": n, "completed": True, "gains": PLAIN} for n in range(26)]
-    f = forecast_failure(twin, PLAIN, alignments, laps, "motion.mu", now_lap=25, seeds=2)
+    f = forecast_failure(twin, PLAIN, alignments, laps, "motion.mu", now_lap=25)
     assert f.failing_value is not None and 0.55 < f.failing_value < 0.775
     straight = (0.775 - f.failing_value) / 0.005
     lo, hi = f.interval
-    assert lo <= straight <= hi and abs(f.laps_to_failure - straight) <= max(2.0, 0.15 * straight)
+    assert lo <= straight <= (hi if hi is not None else float("inf")) and 0 < f.laps_to_failure <= straight + 1
     assert f.quantiles["5"] == lo and f.quantiles["95"] == hi and f.quantiles["50"] == f.laps_to_failure
+    upper = f"{hi:.0f}" if hi is not None else "more than 1000"
     assert f.statement == (f"the gains in force stop finishing in about {f.laps_to_failure:.0f} laps (90 % between "
-                           f"{lo:.0f} and {hi:.0f})")
+                           f"{lo:.0f} and {upper})")
     assert f.evidence == {"alignments": 3, "laps": 26, "failed": 0}
     assert any("replace the tyres" in a for a in f.advice)
-    again = forecast_failure(twin, PLAIN, alignments[::-1], laps, "motion.mu", now_lap=25, seeds=2)
+    again = forecast_failure(twin, PLAIN, alignments[::-1], laps, "motion.mu", now_lap=25)
     assert again == f  # bit for bit, whatever the order the evidence comes in
-    one = forecast_failure(twin, PLAIN, alignments[:1], laps, "motion.mu", now_lap=25, seeds=2)
+    one = forecast_failure(twin, PLAIN, alignments[:1], laps, "motion.mu", now_lap=25)
     assert one.laps_to_failure is None and one.interval is None and "too little evidence" in one.statement
     assert one.laps == 0  # nothing raced on too little evidence
 

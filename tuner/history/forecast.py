@@ -3,7 +3,8 @@
 1. the degradation state of each aligned parameter (its value and rate) is estimated lap by lap by a particle filter
    from the robot's alignments (each stamped with the laps it measured; estimates from failed laps are no evidence);
 2. the twin races the gains in force at a ladder of values of the parameter (each with a few noise seeds, one
-   batch) and finds where they first fail (:func:`first_failure`): the failure model. Lap times say little about
+   batch) and fits how likely a lap is to fail at each value (:mod:`tuner.history.twin_edge`), and how far a lap
+   time pins the value (the lap time's slope and scatter over seeds): the failure model. Lap times say little about
    this until the failures begin: a line follower keeps its lap time almost to its grip limit, then leaves the track;
 3. the filter runs again with every lap the robot ran on the gains in force, finished or failed, as evidence;
 4. a Monte Carlo carries each particle forward, lap by lap, racing each lap against the failure model: the
@@ -25,7 +26,9 @@ import numpy as np
 from tuner.history.trend import measured
 from tuner.prognostics import (FailureModel, FilterSettings, Measurement, Outcome, estimate, life_sentence,
                                measurement_sigma, remaining_life, retune_advice, service_advice)
-from tuner.search.envelope import ROBUST_AXES, ROBUST_SEEDS
+from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
+from tuner.history.twin_edge import twin_edge
+from tuner.search.envelope import ROBUST_AXES
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
@@ -33,7 +36,6 @@ from twin.core.lap import LapLimits
 LADDER = 12  # values raced along the trend, one batch
 REFINE = 6  # then between the last that finished and the first that failed, one more batch
 MIN_MEASURED_LAPS = 2  # alignments at different laps, at least, for a forecast
-EDGE_REL = 0.005  # the failure edge's width, at least this fraction of the value (the robot's lap-to-lap scatter)
 # where a parameter needs service, and what to do: the worn end of the robust envelope
 SERVICE = {"motion.mu": (min(ROBUST_AXES["motion.mu"]), "replace the tyres"),
            "motor.supply_voltage": (min(ROBUST_AXES["motor.supply_voltage"]), "charge or replace the battery")}
@@ -97,15 +99,20 @@ def first_failure(twin: DigitalTwin, gains: dict, address: str, start: float, en
 
 
 
-def measurements_of(alignments: list[dict], address: str) -> list[Measurement]:
-    """The measured alignments of ``address`` (estimates from failed laps are not measurements)."""
+def measurements_of(alignments: list[dict], address: str, lap_sd: float | None = None) -> list[Measurement]:
+    """The measured alignments of ``address`` (estimates from failed laps are not measurements); each one's standard
+    error from its consistent interval and, given ``lap_sd`` (how far one lap time pins the parameter, in its
+    unit), from the lap-time scatter of the laps it measured: lap_sd/√n for n laps."""
     out = []
     for a in alignments:
         if a.get("address", address) == address and measured(a):
             last = int(a["lap"])
-            first = int(a["first_lap"]) if a.get("first_lap") is not None else last
+            first = min(int(a["first_lap"]) if a.get("first_lap") is not None else last, last)
             v = float(a["value"])
-            out.append(Measurement(min(first, last), last, v, measurement_sigma(v, a.get("interval"))))
+            sigma = measurement_sigma(v, a.get("interval"))
+            if lap_sd:
+                sigma = math.hypot(sigma, lap_sd / math.sqrt(last - first + 1))
+            out.append(Measurement(first, last, v, sigma))
     return out
 
 
@@ -125,7 +132,7 @@ def _no_number(address: str, now_lap: int, statement: str, evidence: dict, note:
 
 
 def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], address: str,
-                     now_lap: int, seeds: int = ROBUST_SEEDS, seed: int = 0, lap_timeout_s: float = 30.0,
+                     now_lap: int, seeds: int = EDGE_SEEDS, seed: int = 0, lap_timeout_s: float = 30.0,
                      settings: FilterSettings | None = None) -> Forecast:
     """When the ``gains`` in force first fail, from the robot's ``alignments`` of ``address`` (in lap order, each
     with ``first_lap``, ``lap``, ``value``, ``interval``) and its ``laps`` (``n``, ``completed``, ``gains``) up
@@ -148,17 +155,16 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     if service is not None and (service[0] - now) * direction > 0:
         end = now + 2 * (service[0] - now)  # twice as far as the service limit: far enough, and finely spaced
     end = float(np.clip(end, p.lower, p.upper))
-    finished, failing, raced = failure_bracket(twin, gains, address, start, end, seeds, seed,
-                                               LapLimits(timeout_s=lap_timeout_s))
-    if failing is None:
+    edge = twin_edge(twin, gains, address, start, end, direction, seed, LapLimits(timeout_s=lap_timeout_s),
+                     seeds=seeds)
+    ms = [m for m in measurements_of(alignments, address, edge.value_sd_per_lap()) if m.lap <= now_lap]
+    failure, finished, failing, raced = edge.failure, edge.finished, edge.failing, edge.laps
+    if failure is None:
         return dataclasses.replace(
             _no_number(address, now_lap, f"the gains in force finish every lap the twin raced for {address} from "
                        f"{start:.4g} to {end:.4g}: no failure to forecast", evidence,
                        "no failure within the range raced", first.band),
             value_now=now, raced=(start, end), laps=raced)
-    edge = abs(failing - finished) / 2 if finished is not None else 0.0
-    failure = FailureModel((failing + finished) / 2 if finished is not None else failing,
-                           max(edge, EDGE_REL * abs(failing)), direction)
     state = estimate(ms, outs, now_lap, settings, failure, seed)
     life = remaining_life(state, failure, settings.q, seed + 1,
                           service_limit=service[0] if service is not None else None)
@@ -182,8 +188,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
         if said:
             advice.append(said)
     note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}), from {evidence['alignments']} alignments and "
-            f"{evidence['laps']} laps on these gains ({evidence['failed']} failed); the twin first fails them at "
-            f"{failing:.4g} (finishes at {finished:.4g})" if finished is not None else
-            f"{address} is {med:.4g} now; the twin fails these gains already at {start:.4g}")
+            f"{evidence['laps']} laps on these gains ({evidence['failed']} failed); on the twin half their laps fail "
+            f"at {failure.threshold:.4g} (the first failure raced at {failing:.4g})")
     return Forecast(address, now_lap, statement, med, (lo, hi), state.rate_quantiles(), failure.threshold, laps_to,
                     interval, life.quantiles(), (start, end), raced, evidence, tuple(state.band), tuple(advice), note)

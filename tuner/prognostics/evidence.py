@@ -51,10 +51,12 @@ class FailureModel:
     width: float
     direction: float
 
-    def p_fail(self, v: np.ndarray) -> np.ndarray:
+    def p_fail(self, v: np.ndarray, shift: np.ndarray | float = 0.0) -> np.ndarray:
+        """At value ``v``, for a robot whose edge lies ``shift`` beyond the twin's (the filter learns it from the
+        robot's own laps, finished and failed)."""
         from scipy.special import ndtr
 
-        return ndtr(self.direction * (np.asarray(v) - self.threshold) / self.width)
+        return ndtr(self.direction * (np.asarray(v) - self.threshold - shift) / self.width)
 
     def beyond(self, v: np.ndarray) -> np.ndarray:
         """Is ``v`` past the threshold (on the failing side)?"""

@@ -67,7 +67,7 @@ def remaining_life(state: DegradationState, failure: FailureModel, q: float, see
     for k in range(1, horizon + 1):
         v = v + r
         r = r + q * rng.standard_normal(n)
-        fails = alive & (rng.random(n) < failure.p_fail(v))
+        fails = alive & (rng.random(n) < failure.p_fail(v, state.shift))
         first[fails] = k
         alive &= ~fails
         if service is not None:

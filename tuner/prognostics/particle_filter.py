@@ -1,8 +1,10 @@
 """The degradation state of one parameter, estimated lap by lap by a particle filter (sequential importance
 resampling), from every measurement and every lap outcome (:mod:`tuner.prognostics.evidence`).
 
-A particle is (v, r, s): the parameter's value at the current lap, its rate of change per lap, and how far the
-alignments' stated standard errors are to be trusted (a scale on them, learnt from their scatter). From one lap to
+A particle is (v, r, s, δ): the parameter's value at the current lap, its rate of change per lap, how far the
+alignments' stated standard errors are to be trusted (a scale on them, learnt from their scatter), and where this
+robot's failure edge lies against the twin's (δ ~ N(0, width²) a priori: the twin's edge is the prior, the robot's
+own finished and failed laps move it). From one lap to
 the next v ← v + r and r ← r + N(0, q²): wear at a rate that may itself change (accelerating, slowing), so the
 longer the forecast the wider it grows. A measurement of laps a..b weighs a particle by the normal density of the
 measured value around the particle's mean over those laps (v − r·(b − a)/2), with standard error s·σ; a lap
@@ -55,6 +57,7 @@ class DegradationState:
     value: np.ndarray  # (particles,)
     rate: np.ndarray  # (particles,) per lap
     scale: np.ndarray  # (particles,)
+    shift: np.ndarray  # (particles,) the robot's failure edge against the twin's [parameter unit]
     band: list[tuple[int, float, float, float]]  # (lap, q05, median, q95)
 
     def quantiles(self, q=(0.05, 0.5, 0.95)) -> tuple[float, ...]:
@@ -94,6 +97,7 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
     v = first.value + rng.standard_normal(n) * max(3 * SCALE_PRIOR[1] * first.sigma, 0.02 * settings.span)
     r = rng.standard_normal(n) * settings.rate_prior * settings.span
     log_s = rng.uniform(math.log(SCALE_PRIOR[0]), math.log(SCALE_PRIOR[1]), n)
+    shift = rng.standard_normal(n) * (failure.width if failure is not None else 0.0)
     logw = np.zeros(n)
     by_lap: dict[int, list] = {}
     for m in ms:
@@ -113,16 +117,17 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
             mean = v - r * (m.lap - m.first_lap) / 2
             logw += -0.5 * ((m.value - mean) / sd) ** 2 - np.log(sd)
         for o in outs.get(lap, ()):
-            p = settings.surprise + (1 - 2 * settings.surprise) * failure.p_fail(v)
+            p = settings.surprise + (1 - 2 * settings.surprise) * failure.p_fail(v, shift)
             logw += np.log(p if o.failed else 1 - p)
         w = np.exp(logw - logw.max())
         w /= w.sum()
         band.append((lap, *weighted_quantiles(v, w, (0.05, 0.5, 0.95))))
         if 1.0 / np.sum(w ** 2) < n / 2:
             idx = systematic_resample(w, rng)
-            v, r, log_s = v[idx], r[idx], log_s[idx] + SCALE_JITTER * rng.standard_normal(n)
+            v, r, shift = v[idx], r[idx], shift[idx]
+            log_s = log_s[idx] + SCALE_JITTER * rng.standard_normal(n)
             logw = np.zeros(n)
     w = np.exp(logw - logw.max())
     w /= w.sum()
     idx = systematic_resample(w, rng)  # equally weighted particles for the prediction
-    return DegradationState(band[-1][0], v[idx], r[idx], np.exp(log_s[idx]), band)
+    return DegradationState(band[-1][0], v[idx], r[idx], np.exp(log_s[idx]), shift[idx], band)
