@@ -39,8 +39,8 @@ RUN = [sys.executable, "-m", "twin.run"]
 SCENARIOS = {  # name: (drifts, laps run at most)
     "linear": (["motion.mu=0.9:0.55@80"], 70),
     "accelerating": (["motion.mu=0.9:0.5@70:accelerating"], 70),
-    "step": (["motion.mu=0.9:0.6@40:step@25"], 80),
-    "two causes": (["motion.mu=0.9:0.62@80", "motor.supply_voltage=6.0:4.8@80"], 80),
+    "step": (["motion.mu=0.9:0.6@40:step@15"], 80),  # tyres swapped at lap 15 (μ 0.79), worn again from there
+    "two causes": (["motion.mu=0.9:0.6@60", "motor.supply_voltage=6.0:4.0@60"], 80),
 }
 POINTS = (0.3, 0.5, 0.7, 0.9)  # forecasts at these fractions of the life (first failed lap)
 ALPHA, LAMBDA = 0.2, 0.5

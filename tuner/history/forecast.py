@@ -146,12 +146,15 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
                           f"(at least {MIN_MEASURED_LAPS} at different laps are needed)", evidence, "too little evidence")
     settings = settings or FilterSettings(span=float(p.upper - p.lower))
     first = estimate(ms, (), now_lap, settings, None, seed)
-    direction = -1.0 if first.rate_quantiles((0.5,))[0] <= 0 else 1.0
+    now = first.quantiles((0.5,))[0]
+    service = SERVICE.get(address)
+    if service is not None:  # a part that wears one way only (grip, charge): towards its service limit
+        direction = -1.0 if service[0] < max(m.value for m in ms) else 1.0
+    else:  # else the way the evidence says it goes
+        direction = -1.0 if first.rate_quantiles((0.5,))[0] <= 0 else 1.0
     worn = max(m.value for m in ms) if direction < 0 else min(m.value for m in ms)
     start = float(np.clip(worn, p.lower, p.upper))  # the least worn value measured: the gains finished there
     end = p.lower if direction < 0 else p.upper
-    service = SERVICE.get(address)
-    now = first.quantiles((0.5,))[0]
     if service is not None and (service[0] - now) * direction > 0:
         end = now + 2 * (service[0] - now)  # twice as far as the service limit: far enough, and finely spaced
     end = float(np.clip(end, p.lower, p.upper))

@@ -8,6 +8,7 @@ the logs before it (by when their first session began), so trends span every run
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 import sqlalchemy as sa
@@ -126,8 +127,10 @@ def _soonest(forecasts):
     return ranked[0] if ranked else None
 
 
-def report(history: History, twin: DigitalTwin | None, name: str | None = None, seed: int = 0) -> list[dict]:
-    """Per robot: laps, changes, trends and (with a ``twin``) the forecast and advice."""
+def report(history: History, twin: DigitalTwin | None, name: str | None = None, seed: int = 0,
+           progress: Callable[[str], None] | None = None) -> list[dict]:
+    """Per robot: laps, changes, trends and (with a ``twin``) the forecast and advice; ``progress`` hears of each
+    robot's forecast (a few seconds each) before it begins."""
     out = []
     for robot in robots(history, name):
         with history.begin() as c:
@@ -149,6 +152,8 @@ def report(history: History, twin: DigitalTwin | None, name: str | None = None, 
         gains = gains_in_force(laps, changes)
         entry["gains_in_force"] = gains
         if twin is not None and gains and laps:
+            if progress is not None:
+                progress(f"forecasting robot {robot['name']}: filtering its evidence, racing its gains on the twin")
             entry["forecasts"] = {a: forecast_failure(twin, gains, aligned, laps, a, laps[-1]["n"], seed=seed)
                                   for a in sorted(entry["trends"])}
             f = _soonest(entry["forecasts"].values())

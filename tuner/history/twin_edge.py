@@ -5,8 +5,8 @@ laps:
 * the failure model (:class:`tuner.prognostics.FailureModel`): the probability that a lap fails at a value,
   a normal CDF fitted by maximum likelihood to every raced lap, finished or failed (a grid over the edge and its
   width: deterministic);
-* how well a lap time pins the parameter: the mean lap time's slope over the values where every lap finished
-  [s per unit] and the scatter of a lap time around it over noise seeds [s]; an alignment on n laps then knows
+* how well a lap time pins the parameter: the mean lap time's slope over the ladder's values before its first
+  failure [s per unit], and the scatter of a lap time around it over noise seeds [s]; an alignment on n laps then knows
   the parameter to about scatter/√n/|slope|, whatever its own consistent interval says.
 """
 
@@ -83,13 +83,14 @@ def twin_edge(twin: DigitalTwin, gains: dict, address: str, start: float, end: f
     p = twin.space.parameter(address)
     rows = _race(twin, gains, address, np.linspace(start, end, LADDER), seeds, seed, limits)
     any_fail = [any(f for f, _ in laps) for _, laps in rows]
+    # the lap time's slope and scatter where the robot runs well: the ladder's values before its first failure
+    slope, sd = _lap_times(rows[:any_fail.index(True)] if any(any_fail) else rows)
     if any(any_fail) and not any_fail[0]:
         i = any_fail.index(True)
         hi = min(i + 1, len(rows) - 1)  # across the first failures and one step beyond
         rows += _race(twin, gains, address, np.linspace(rows[i - 1][0], rows[hi][0], REFINE + 2)[1:-1], seeds, seed,
                       limits)
     rows.sort(key=lambda r: direction * r[0])  # from the least worn
-    slope, sd = _lap_times(rows)
     laps = sum(len(l) for _, l in rows)
     fails = [any(f for f, _ in l) for _, l in rows]
     if not any(fails):

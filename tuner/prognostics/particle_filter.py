@@ -30,7 +30,7 @@ from tuner.prognostics.evidence import FailureModel, Measurement, Outcome
 PARTICLES = 4000
 SURPRISE = 0.02  # chance of a lap outcome the parameter does not explain
 RATE_PRIOR = 0.01  # the prior rate's standard deviation, per lap, as a fraction of the parameter's range
-RATE_WALK = 1e-4  # q: the rate's change per lap (standard deviation), as a fraction of the parameter's range
+RATE_WALK = 5e-4  # q: the rate's change per lap (standard deviation), as a fraction of the parameter's range
 SCALE_PRIOR = (0.5, 4.0)  # the noise scale s, log-uniform between these
 SCALE_JITTER = 0.05  # log s jitter at a resampling
 

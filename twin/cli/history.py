@@ -8,6 +8,7 @@ import argparse
 import json
 import math
 import os
+import sys
 
 from lf_common.files import check_output_dir, input_file, output_dir
 from twin.cli import options as o
@@ -36,7 +37,7 @@ def add_parser(sub) -> None:
     o.add_out_dir(p, "a chart per robot (history_<robot>.png) and history.json", None)
     o.add_json(p)
     o.add_recording(p, "each robot's lap times, aligned parameters and gain changes")
-    o.add_verbose(p)
+    o.add_verbose(p, quiet=True)
     p.set_defaults(run=run)
 
 
@@ -76,7 +77,9 @@ def run(args: argparse.Namespace) -> int:
     twin = None if args.no_forecast else tw.twin_from_args(args)
     history = History(args.db)
     try:
-        entries = report(history, twin, args.robot_id, args.seed)
+        quiet = args.json or args.quiet
+        entries = report(history, twin, args.robot_id, args.seed,
+                         None if quiet else lambda text: print(text, file=sys.stderr, flush=True))
     finally:
         history.close()
     if not entries:
