@@ -6,9 +6,9 @@ Measured, each run with its own emulated robot (the same seed, the same drift), 
   * failed laps: laps the robot did not finish, plain and with --act (from the robot's own record, ``--echo``);
   * laps to recover: with --act, from the first lap the twin disagreed with (beyond --threshold) to the first lap
     the robot ran on re-tuned gains that were then confirmed;
-  * the forecast's error: from the plain run's alignments before its first failed lap, ``history``'s forecast
-    (the gains raced on the twin along the trend of the aligned grip) of the lap they stop finishing, against the
-    lap they first failed on; made at each alignment with at least two before it.
+  * the forecast's error: from the plain run's alignments and laps before its first failed lap, ``history``'s
+    forecast (the median of the remaining life, :func:`tuner.history.forecast_failure`) of the lap they stop
+    finishing, against the lap they first failed on; made at each alignment with at least one before it.
 
   python benchmarks/bench_act.py [--laps 80] [--speed 1] [--keep DIR] [--json]
 """
@@ -24,7 +24,7 @@ import sys
 import tempfile
 import time
 
-from tuner.history import actions_path, forecast_failure, log_laps, read_journal, trend_of
+from tuner.history import actions_path, forecast_failure, log_laps, read_journal
 from twin.core.digital_twin import DigitalTwin
 
 PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
@@ -60,23 +60,22 @@ def recovery(folder: str, doc: dict, laps: list, threshold: float) -> int | None
 
 
 def forecasts(doc: dict, laps: list) -> list[dict]:
-    """The forecast made at each alignment of the plain run (with two before it) before its first failed lap."""
+    """The forecast made at each alignment of the plain run (with one before it) before its first failed lap, from
+    the alignments and laps seen up to it."""
     failed = next((k for k, (_, t) in enumerate(laps) if t is None), None)
     if failed is None:
         return []
     twin = DigitalTwin()
     twin.model()
-    aligned = [a for a in doc["alignments"] if a.get("explained") and a.get("lap", failed) <= failed]
+    aligned = [a for a in doc["alignments"] if a.get("explained") and a.get("lap", failed) < failed]
+    seen = [{"n": k, "completed": t is not None, "gains": PLAIN} for k, (_, t) in enumerate(laps)]
     out = []
     for i in range(1, len(aligned)):
-        t = trend_of(aligned[:i + 1], "motion.mu")
-        if t is None:
-            continue
         now = aligned[i]["lap"]
-        f = forecast_failure(twin, PLAIN, t, now_lap=now)
+        f = forecast_failure(twin, PLAIN, aligned[:i + 1], seen[:now + 1], "motion.mu", now_lap=now)
         predicted = None if f.laps_to_failure is None else now + f.laps_to_failure
         out.append({"at_lap": now, "failing_mu": f.failing_value, "predicted_lap": predicted,
-                    "interval": None if f.interval is None else [now + f.interval[0], now + f.interval[1]],
+                    "interval": None if f.interval is None else [None if x is None else now + x for x in f.interval],
                     "first_failed_lap": failed, "error_laps": None if predicted is None else predicted - failed})
     return out
 

@@ -62,8 +62,9 @@ def lap_lines(t0: float, lap_time: float, seq: int, fail: str | None = None) -> 
     return [encode(Header(8, 0.005, 2, "r7", seq)), encode(Event(t0, "START")), *rows, end]
 
 
-def session_files(folder) -> str:
-    """A log of 6 laps (a change of gains in force from lap 3, one failed lap) and its journal; the log's path."""
+def session_files(folder, start: float = 1000.0, mu: float = 0.8) -> str:
+    """A log of 6 laps (a change of gains in force from lap 3, one failed lap) and its journal, its session begun at
+    ``start`` [s since the epoch], grip aligned to ``mu`` on laps 0 to 1; the log's path."""
     log = os.path.join(folder, "robot.log")
     lines = [encode(Header(8, 0.005, 2, "r7", 0)), encode(Boot(0.0, "STORED", 3, 0))]
     t = 0.0
@@ -76,19 +77,19 @@ def session_files(folder) -> str:
     with open(log, "w") as f:
         f.writelines(lines)
     j = Journal(actions_path(log), "robot.log")
-    records = [{"kind": "session", "time": 1000.0, "lap": 0, "act": True, "address": "motion.mu", "gains": PLAIN,
+    records = [{"kind": "session", "time": start, "lap": 0, "act": True, "address": "motion.mu", "gains": PLAIN,
                 "pitch_m": 0.009525}]
     for k in range(6):
         gains = PLAIN if k < 3 else NEW
-        records.append({"kind": "lap", "lap": k, "time": 1000.0 + 7 * k, "robot": "r7", "gains_seq": 0 if k < 3 else 9,
+        records.append({"kind": "lap", "lap": k, "time": start + 7 * k, "robot": "r7", "gains_seq": 0 if k < 3 else 9,
                         "robot_lap_time_s": None if k == 2 else 7 + 0.1 * k, "twin_lap_time_s": 7.0,
                         "discrepancy": 0.01, "value": {"motion.mu": 0.8}, "gains": gains, "implausible": None})
         if k == 1:
-            records.append({"kind": "alignment", "lap": 2, "time": 1010.0, "address": "motion.mu", "robot": "r7",
-                            "explained": True, "value": 0.8, "before": 0.9, "interval": [0.79, 0.81],
+            records.append({"kind": "alignment", "first_lap": 0, "lap": 1, "time": start + 10, "address": "motion.mu",
+                            "robot": "r7", "explained": True, "value": mu, "before": 0.9, "interval": [mu - 0.01, mu + 0.01],
                             "measured_lap_time_s": 7.05, "message": "ok", "reason": "slower"})
         if k == 2:
-            change = {"robot": "r7", "lap": 3, "time": 1020.0, "seq": 9, "change": "retune", "gains": NEW,
+            change = {"robot": "r7", "lap": 3, "time": start + 20, "seq": 9, "change": "retune", "gains": NEW,
                       "previous": PLAIN, "previous_seq": 0, "reason": "aligned", "predicted_lap_time_s": 7.3,
                       "aligned": {"motion.mu": 0.8}, "decided_lap": 3}
             for kind in ("decide", "send", "ack", "in_force"):
@@ -198,16 +199,84 @@ def test_the_same_migrations_and_rows_on_postgresql(tmp_path, postgres):  # noqa
     assert dump(url) == dump(lite)
 
 
-def test_the_forecast_races_the_gains_along_the_trend():
+def test_the_forecast_filters_the_evidence_and_races_the_gains_on_the_twin():
+    """Grip aligned exactly on a straight line, 0.9 − 0.005·lap (laps 4-5, 14-15, 24-25), every lap finished on the
+    plain gains: the twin fails them somewhere below μ ≈ 0.75 (test_act's premise), gradually (a lap fails more
+    often the lower μ is). The straight line reaches the value where half the twin's laps fail (0.775 − edge)/0.005
+    laps after lap 25: that lies inside the stated 90 % interval, and the median comes no later (a first failure
+    comes before half the laps fail); the advice and the statement come from that distribution."""
     twin = DigitalTwin()
     twin.model()
-    alignments = [{"lap": lap, "address": "motion.mu", "explained": True, "value": 0.9 - 0.005 * lap,
-                   "interval": [0.9 - 0.005 * lap - 0.005, 0.9 - 0.005 * lap + 0.005]} for lap in (5, 15, 25)]
-    t = trend_of(alignments, "motion.mu")
-    assert t.slope == pytest.approx(-0.005) and t.slope_se > 0
-    f = forecast_failure(twin, PLAIN, t, now_lap=25, seeds=2)
-    # the plain gains lose the line somewhere below μ ≈ 0.75 on some seed (test_act's premise), not at 0.775
+    alignments = [{"first_lap": lap - 1, "lap": lap, "address": "motion.mu", "explained": True,
+                   "value": 0.9 - 0.005 * (lap - 0.5), "interval": [0.9 - 0.005 * lap - 0.005, 0.9 - 0.005 * lap + 0.005]}
+                  for lap in (5, 15, 25)]
+    laps = [{"n": n, "completed": True, "gains": PLAIN} for n in range(26)]
+    f = forecast_failure(twin, PLAIN, alignments, laps, "motion.mu", now_lap=25)
     assert f.failing_value is not None and 0.55 < f.failing_value < 0.775
-    assert f.laps_to_failure == pytest.approx((f.failing_value - 0.775) / -0.005)
-    assert f.interval[0] <= f.laps_to_failure <= f.interval[1]
+    straight = (0.775 - f.failing_value) / 0.005
+    lo, hi = f.interval
+    assert lo <= straight <= (hi if hi is not None else float("inf")) and 0 < f.laps_to_failure <= straight + 1
+    assert f.quantiles["5"] == lo and f.quantiles["95"] == hi and f.quantiles["50"] == f.laps_to_failure
+    upper = f"{hi:.0f}" if hi is not None else "more than 1000"
+    assert f.statement == (f"the gains in force stop finishing in about {f.laps_to_failure:.0f} laps (90 % between "
+                           f"{lo:.0f} and {upper})")
+    assert f.evidence == {"alignments": 3, "laps": 26, "failed": 0}
     assert any("replace the tyres" in a for a in f.advice)
+    again = forecast_failure(twin, PLAIN, alignments[::-1], laps, "motion.mu", now_lap=25)
+    assert again == f  # bit for bit, whatever the order the evidence comes in
+    one = forecast_failure(twin, PLAIN, alignments[:1], laps, "motion.mu", now_lap=25)
+    assert one.laps_to_failure is None and one.interval is None and "too little evidence" in one.statement
+    assert one.laps == 0  # nothing raced on too little evidence
+
+
+def test_a_rebuild_gives_the_same_history_whatever_the_order_the_logs_arrive_in(tmp_path):
+    """Three runs of robot r7 (grip aligned 0.8, 0.75, 0.7 on each run's laps 0-1), rebuilt in two orders and twice:
+    the same alignments, in the order of the laps they measured (run k's laps 0-1 are laps 6k to 6k+1 of its life),
+    and the same trend, bit for bit."""
+    from tuner.history.report import report
+
+    logs = []
+    for k, mu in enumerate((0.8, 0.75, 0.7)):
+        folder = tmp_path / f"run{k}"
+        folder.mkdir()
+        logs.append(session_files(str(folder), start=1000.0 + 100 * k, mu=mu))
+    entries = []
+    for name, order in (("a", logs), ("b", logs[::-1]), ("c", [logs[1], logs[0], logs[2], logs[0]])):
+        h = History(sqlite(tmp_path, f"{name}.sqlite"))
+        for log in order:
+            rebuild_log(h, log)
+        entries.append(report(h, None))
+        h.close()
+    assert entries[0] == entries[1] == entries[2]
+    (robot,) = entries[0]
+    assert [(a["first_lap"], a["lap"], a["value"]) for a in robot["alignments"]] == [
+        (0, 1, 0.8), (6, 7, 0.75), (12, 13, 0.7)]
+    assert robot["trends"]["motion.mu"]["slope"] == pytest.approx(-0.05 / 6)
+
+
+def test_bad_history_input_is_one_line_and_no_number(tmp_path, capsys):
+    """An empty history and a database of another program: one error line, exit 2. One alignment: the forecast
+    says there is too little evidence and gives no number (nothing is raced)."""
+    empty = sqlite(tmp_path, "empty.sqlite")
+    History(empty).close()
+    foreign = tmp_path / "theirs.sqlite"
+    engine = sa.create_engine(f"sqlite:///{foreign}")
+    with engine.begin() as c:
+        c.execute(sa.text("CREATE TABLE orders (id INTEGER)"))
+    engine.dispose()
+    for url in (empty, f"sqlite:///{foreign}"):
+        capsys.readouterr()
+        assert main(["history", "--db", url, "--json"]) == 2
+        out, err = capsys.readouterr()
+        assert out == "" and err.count("\n") == 1 and err.startswith("error: --db"), err
+    one = sqlite(tmp_path, "one.sqlite")
+    h = History(one)
+    rebuild_log(h, session_files(str(tmp_path)))
+    h.close()
+    capsys.readouterr()
+    assert main(["history", "--db", one, "--json"]) == 0
+    robot = json.loads(capsys.readouterr().out)["robots"][0]
+    f = robot["forecast"]
+    assert robot["causes_tracked"] == ["motion.mu"] and "cannot tell them apart" in robot["causes_note"]
+    assert f["laps_to_failure"] is None and f["interval"] is None and f["quantiles"] is None and f["laps"] == 0
+    assert f["statement"].startswith("too little evidence") and not any(ch.isdigit() for ch in f["statement"].split(":")[0])

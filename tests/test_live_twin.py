@@ -165,3 +165,40 @@ def test_a_successful_alignment_is_info_not_warning(monkeypatch, caplog):
     aligned = [r for r in caplog.records if r.message.startswith("aligned motion.mu")]
     assert len(aligned) == 1 and aligned[0].levelno == logging.INFO
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+@pytest.mark.quick
+def test_an_alignment_is_stamped_with_the_laps_it_measured_not_when_it_arrived(monkeypatch):
+    """k_laps = 2: laps 0 and 1 disagree and start an alignment on their mean; its result is held back until lap 2
+    has been counted. It must say it measured laps 0 to 1 (the count when it arrived is 3)."""
+    import threading
+
+    release = threading.Event()
+
+    def slow(twin, measured, address, bounds, seed, limits=None):
+        release.wait(30)
+        return types.SimpleNamespace(explained=True, value=0.7, message="stand-in", consistent=(0.69, 0.71))
+
+    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", slow)
+    live = LiveTwin(DigitalTwin(track="oval"), LiveOptions(threshold=1e-6, k_laps=2))
+    for k, lap_time in enumerate((9.5, 9.6, 9.7)):
+        for line in lap_lines(lap_time, t0=20.0 * k):
+            live.feed(decode(line))
+    release.set()
+    live.finish()
+    (a,) = live.alignments
+    assert (a["first_lap"], a["lap"], a["measured_lap_time_s"]) == (0, 1, pytest.approx(9.55))
+    assert len(live.laps) == 3
+
+
+def test_an_estimate_from_failed_laps_is_no_evidence_for_the_trend():
+    from tuner.history import trend_of
+
+    measured = [{"lap": lap, "address": "motion.mu", "explained": True, "value": 0.9 - 0.01 * lap,
+                 "interval": [0.89 - 0.01 * lap, 0.91 - 0.01 * lap]} for lap in (0, 10)]
+    estimate = {"lap": 20, "address": "motion.mu", "explained": True, "value": 0.2, "interval": None,
+                "from_failures": True}
+    stored = {**estimate, "from_failures": None, "estimated": True}  # as the history database gives it back
+    alone = trend_of(measured, "motion.mu")
+    assert alone.slope == pytest.approx(-0.01)  # two points: the line through them
+    assert trend_of(measured + [estimate], "motion.mu") == alone == trend_of(measured + [stored], "motion.mu")

@@ -9,7 +9,7 @@ import pytest
 
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
-from twin.link.emulator import Drift
+from twin.link.emulator import Drift, check_drifts, drifted
 from twin.link.robot_end import IMAGE_SIZE, SLOT_SIZE, EepromFile, RobotEnd, read_stored
 from twin.telemetry.laps import LapAssembler
 from twin.telemetry.wire import (Boot, Command, Event, Header, Reply, UnknownCommand, WireError, decode, encode, frame,
@@ -101,6 +101,25 @@ def test_laps_carry_the_robot_and_the_gains_in_force_and_a_drift_is_linear():
     d = Drift.parse("motion.mu=0.9:0.5@40", twin)
     assert (d.at(0), d.at(20), d.at(40), d.at(99)) == (0.9, pytest.approx(0.7), pytest.approx(0.5), pytest.approx(0.5))
     for bad, why in (("motion.mu=0.9:0.5", "START:END@LAPS"), ("cad.L=0.04:0.05@3", "rebuilds"),
-                     ("motion.mu=0.9:9@3", "motion.mu"), ("motion.mu=0.9:0.5@0", "at least 1")):
+                     ("motion.mu=0.9:9@3", "motion.mu"), ("motion.mu=0.9:0.5@0", "at least 1"),
+                     ("motion.mu=0.9:0.5@40:wobbly", "linear|accelerating|step@K"),
+                     ("motion.mu=0.9:0.5@40:step", "step@K"), ("motion.mu=0.9:0.5@40:linear@3", "step@K"),
+                     ("motion.mu=0.9:0.5@40:step@0", "at least 1")):
         with pytest.raises(TwinError, match=why):
             Drift.parse(bad, twin)
+
+
+@pytest.mark.quick
+def test_drifts_accelerate_step_back_and_come_two_at_once():
+    twin = DigitalTwin()
+    acc = Drift.parse("motion.mu=0.9:0.5@40:accelerating", twin)  # 0.9 − 0.4·(lap/40)²
+    assert (acc.at(0), acc.at(20), acc.at(40), acc.at(60)) == (0.9, pytest.approx(0.8), pytest.approx(0.5),
+                                                                pytest.approx(0.5))
+    step = Drift.parse("motion.mu=0.9:0.5@40:step@30", twin)  # renewed at lap 30, then wearing from 0.9 again
+    assert (step.at(29), step.at(30), step.at(40)) == (pytest.approx(0.61), 0.9, pytest.approx(0.8))
+    assert Drift.parse("motion.mu=0.9:0.5@40:linear", twin) == Drift.parse("motion.mu=0.9:0.5@40", twin)
+    both = [Drift.parse("motion.mu=0.9:0.6@40", twin), Drift.parse("motor.supply_voltage=6:5@40", twin)]
+    check_drifts(both)
+    assert drifted(both, 20) == {"motion.mu": pytest.approx(0.75), "motor.supply_voltage": pytest.approx(5.5)}
+    with pytest.raises(TwinError, match="more than once"):
+        check_drifts([both[0], Drift.parse("motion.mu=0.8:0.7@10", twin)])

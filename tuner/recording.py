@@ -167,8 +167,9 @@ class LiveRecording:
 
 
 def save_history(save: str | None, view: bool, entries: Sequence[dict]) -> str | None:
-    """Each robot's life (``history``): lap times and the twin's predictions, the aligned parameter and its trend,
-    by the robot's lap counted across runs; each change of gains as a text line on the lap it came into force."""
+    """Each robot's life (``history``): lap times and the twin's predictions, the aligned parameter, the filter's
+    estimate of it lap by lap with its 90 % band, and the failed laps (at the value where the twin fails the gains
+    in force), by the robot's lap counted across runs; each change of gains as a text line on the lap it came into force."""
     if not save and not view:
         return None
     blueprint = rrb.Blueprint(rrb.Horizontal(
@@ -189,6 +190,15 @@ def save_history(save: str | None, view: bool, entries: Sequence[dict]) -> str |
                 if pts:
                     _series(rec, f"history/{robot}/aligned/{address}", [rr.TimeColumn("lap", sequence=[a["lap"] for a in pts])],
                             [a["value"] for a in pts])
+            for address, f in (e.get("forecasts") or {}).items():  # the filter's estimate and its 90 % band
+                if f.get("band"):
+                    laps = [rr.TimeColumn("lap", sequence=[b[0] for b in f["band"]])]
+                    for k, name in ((1, "q05"), (2, "median"), (3, "q95")):
+                        _series(rec, f"history/{robot}/aligned/{address}_estimate/{name}", laps, [b[k] for b in f["band"]])
+                failed = [r["n"] for r in e["lap_times"] if not r["completed"]]
+                if failed and f.get("failing_value") is not None:
+                    _series(rec, f"history/{robot}/aligned/{address}_failed_laps", [rr.TimeColumn("lap", sequence=failed)],
+                            [f["failing_value"]] * len(failed))
             for ch in e["changes"]:
                 at = ch["first_lap"] if ch["first_lap"] is not None else ch["decided_lap"]
                 rec.set_time("lap", sequence=at or 0)

@@ -3,11 +3,12 @@ telemetry log (:mod:`tuner.history.journal`); the history database of robots, ru
 changes (SQLAlchemy, created and upgraded by Alembic migrations: :mod:`tuner.history.store`,
 :mod:`tuner.history.schema`), written as live runs (:class:`HistoryWriter`) or rebuilt from the logs
 (:func:`rebuild_log`), and by ``lap``, ``tune``, ``align`` (:mod:`tuner.history.commands`); the trend of each aligned
-parameter (:func:`trend_of`) and the forecast of when the gains in force stop finishing, raced on the twin along it
-(:func:`forecast_failure`)."""
+parameter (:func:`trend_of`), and the forecast of when the gains in force stop finishing (:func:`forecast_failure`:
+the degradation state filtered from all the evidence, the twin's failure edge, the remaining life by Monte Carlo,
+:mod:`tuner.prognostics`)."""
 
 from tuner.history.commands import record_alignment, record_fit, record_lap
-from tuner.history.forecast import Forecast, first_failure, forecast_failure
+from tuner.history.forecast import Forecast, failure_bracket, first_failure, forecast_failure
 from tuner.history.journal import Journal, actions_path, check_journal, read_journal
 from tuner.history.rebuild import log_laps, rebuild_log
 from tuner.history.store import DEFAULT_DB, History, HistoryError, check_db, default_url, display
@@ -15,5 +16,5 @@ from tuner.history.trend import Trend, trend_of
 from tuner.history.writer import HistoryWriter
 
 __all__ = ["DEFAULT_DB", "Forecast", "History", "HistoryError", "HistoryWriter", "Journal", "Trend", "actions_path",
-           "check_db", "check_journal", "default_url", "display", "first_failure", "forecast_failure", "log_laps",
+           "check_db", "check_journal", "default_url", "display", "failure_bracket", "first_failure", "forecast_failure", "log_laps",
            "read_journal", "rebuild_log", "record_alignment", "record_fit", "record_lap", "trend_of"]

@@ -1,11 +1,9 @@
 """A robot's life on one page (PNG, matplotlib, no display needed): its lap times lap by lap (failures marked, each
 change of gains drawn where it came into force: confirmed, rolled back, refused), and below, the aligned parameter
-with each alignment's interval, its trend, where the gains in force start failing, and the forecast lap with its
-95 % interval."""
+with each alignment over the laps it measured, the filter's estimate lap by lap with its 90 % band, where the
+gains in force start failing, the failed laps, and the forecast lap (median) with its 90 % interval."""
 
 from __future__ import annotations
-
-import math
 
 import matplotlib
 
@@ -49,33 +47,33 @@ def robot_chart(entry: dict, path: str) -> str:
 
 
 def _parameter(ax, entry: dict) -> None:
-    trends = {a: t for a, t in entry["trends"].items() if t}
     if not entry["alignments"]:
         ax.text(0.5, 0.5, "no alignment yet", ha="center", va="center", transform=ax.transAxes)
         return
-    address = next(iter(trends), entry["alignments"][0]["address"])
-    points = [a for a in entry["alignments"] if a["address"] == address and a["value"] is not None]
+    f = entry.get("forecast")
+    address = f["address"] if f else entry["alignments"][0]["address"]
+    points = [a for a in entry["alignments"] if a["address"] == address and a["value"] is not None
+              and not a.get("estimated")]
     for a in points:
         lo, hi = a["interval"] or (a["value"], a["value"])
-        ax.errorbar(a["lap"], a["value"], yerr=[[a["value"] - lo], [hi - a["value"]]], fmt="o", ms=4,
-                    color="tab:blue", capsize=2)
-    f, t = entry.get("forecast"), trends.get(address)
-    if t:
-        end = entry["laps"]
-        if f and f.get("laps_to_failure") is not None and math.isfinite(f["laps_to_failure"]):
-            end = max(end, f["now_lap"] + f["laps_to_failure"])
-        xs = [t["first_lap"], end]
-        ax.plot(xs, [t["intercept"] + t["slope"] * x for x in xs], "-", color="tab:blue", lw=1,
-                label=f"trend {t['slope']:+.2g} per lap")
+        ax.errorbar((a.get("first_lap", a["lap"]) + a["lap"]) / 2, a["value"], yerr=[[a["value"] - lo], [hi - a["value"]]],
+                    xerr=(a["lap"] - a.get("first_lap", a["lap"])) / 2, fmt="o", ms=4, color="tab:blue", capsize=2)
+    if f and f.get("band"):
+        laps, q05, med, q95 = zip(*f["band"])
+        ax.fill_between(laps, q05, q95, color="tab:blue", alpha=0.15, label="estimate, 90 %")
+        ax.plot(laps, med, "-", color="tab:blue", lw=1)
     if f and f.get("failing_value") is not None:
         ax.axhline(f["failing_value"], color="tab:red", lw=1, ls=":", label="the gains in force fail beyond")
-        if f.get("laps_to_failure") is not None and math.isfinite(f["laps_to_failure"]):
+        failed = [r["n"] for r in entry["lap_times"] if not r["completed"]]
+        if failed:
+            ax.plot(failed, [f["failing_value"]] * len(failed), "x", color="tab:red", label="failed lap")
+        if f.get("laps_to_failure") is not None:
             at = f["now_lap"] + f["laps_to_failure"]
-            ax.plot([at], [f["failing_value"]], "v", color="tab:red", label=f"forecast: lap {at:.0f}")
+            ax.plot([at], [f["failing_value"]], "v", color="tab:red", label=f"forecast: lap {at:.0f} (median)")
             lo, hi = f["interval"] or (None, None)
             if lo is not None:
-                ax.axvspan(f["now_lap"] + lo, f["now_lap"] + (hi if hi is not None else lo + 1e3), color="tab:red",
-                           alpha=0.1)
+                end = f["now_lap"] + hi if hi is not None else ax.get_xlim()[1]
+                ax.axvspan(f["now_lap"] + lo, end, color="tab:red", alpha=0.1, label="90 % of the futures fail here")
     ax.set_ylabel(address)
-    if t or (f and f.get("failing_value") is not None):
+    if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=8, loc="best")

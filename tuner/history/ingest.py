@@ -84,7 +84,8 @@ class LogIngest:
                     time=r.get("time"), address=r.get("address") or "motion.mu", before=r.get("before"),
                     value=r.get("value"), lo=lo, hi=hi, explained=bool(r.get("explained")),
                     identifiable=r.get("identifiable"), measured_lap_time_s=r.get("measured_lap_time_s"),
-                    message=r.get("message"), reason=r.get("reason"))
+                    message=r.get("message"), reason=r.get("reason"), first_lap=r.get("first_lap", r.get("lap")),
+                    estimated=bool(r.get("from_failures")))
 
     def action(self, c, a: dict, index: int) -> None:
         """One action of the live twin: a gain change's step, or another event."""

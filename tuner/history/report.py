@@ -8,6 +8,7 @@ the logs before it (by when their first session began), so trends span every run
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 import sqlalchemy as sa
@@ -43,12 +44,12 @@ def robot_laps(c, robot_id: int) -> tuple[list[dict], dict]:
     logs: dict[str, list[dict]] = {}
     for r in runs:
         logs.setdefault(r["log_path"] or r["source"], []).append(r)
-    order = sorted(logs, key=lambda k: min((r["started"] or math.inf) for r in logs[k]))
+    order = sorted(logs, key=lambda k: (min((r["started"] or math.inf) for r in logs[k]), k))  # ties: by the log
     laps, offsets, base = [], {}, 0
     for key in order:
         ids = [r["id"] for r in logs[key]]
         rows = [dict(x._mapping) for x in c.execute(sa.select(s.laps).where(s.laps.c.run_id.in_(ids))
-                                                    .order_by(s.laps.c.lap))]
+                                                    .order_by(s.laps.c.lap, s.laps.c.source))]
         for r in logs[key]:
             offsets[r["id"]] = base
         for row in rows:
@@ -69,20 +70,32 @@ def _changes(c, robot_id: int, offsets: dict) -> list[dict]:
                 d[k] += base
         out.append({k: d[k] for k in ("seq", "kind", "status", "decided_lap", "first_lap", "gains", "reason",
                                       "predicted_lap_time_s", "nak_reason", "outcome")})
-    return out
+    # in the order of the robot's laps (not of the rows), whatever order the logs were rebuilt in
+    return sorted(out, key=lambda ch: (math.inf if ch["decided_lap"] is None else ch["decided_lap"], ch["seq"],
+                                       math.inf if ch["first_lap"] is None else ch["first_lap"], ch["status"]))
 
 
 def _alignments(c, robot_id: int, offsets: dict) -> list[dict]:
-    rows = c.execute(sa.select(s.alignments).where(s.alignments.c.robot_id == robot_id).order_by(s.alignments.c.id))
+    """The robot's alignments in the order of the laps they measured (ties: by address, then value), whatever the
+    order their rows were written in: a rebuild of the logs in any order gives the same list."""
+    rows = c.execute(sa.select(s.alignments).where(s.alignments.c.robot_id == robot_id))
     out = []
     for r in rows:
         d = dict(r._mapping)
         if d["lap"] is None:
             continue  # an alignment of the twin alone (align): no place among the robot's laps
-        out.append({"lap": d["lap"] + offsets.get(d["run_id"], 0), "address": d["address"], "value": d["value"],
+        base = offsets.get(d["run_id"], 0)
+        first = d["first_lap"] if d["first_lap"] is not None else d["lap"]
+        out.append({"lap": d["lap"] + base, "first_lap": first + base, "address": d["address"], "value": d["value"],
                     "interval": [d["lo"], d["hi"]] if d["lo"] is not None else None, "explained": d["explained"],
-                    "measured_lap_time_s": d["measured_lap_time_s"]})
-    return out
+                    "estimated": bool(d["estimated"]), "measured_lap_time_s": d["measured_lap_time_s"],
+                    "identifiable": d["identifiable"]})
+    return sorted(out, key=_lap_order)
+
+
+def _lap_order(a: dict) -> tuple:
+    return (a["lap"], a["first_lap"], a["address"], a["value"] is None, a["value"] or 0.0, str(a["identifiable"]),
+            a["interval"] or (), a["explained"], a["estimated"], a["measured_lap_time_s"] or 0.0)
 
 
 def gains_in_force(laps: list[dict], changes: list[dict]) -> dict | None:
@@ -94,8 +107,33 @@ def gains_in_force(laps: list[dict], changes: list[dict]) -> dict | None:
     return done[-1]["gains"] if done else None
 
 
-def report(history: History, twin: DigitalTwin | None, name: str | None = None, seed: int = 0) -> list[dict]:
-    """Per robot: laps, changes, trends and (with a ``twin``) the forecast and advice."""
+def causes_note(tracked: list[str], aligned: list[dict]) -> str:
+    """Which causes the forecast tracks, and what the evidence cannot tell apart."""
+    if not tracked:
+        return "no cause tracked: nothing was aligned"
+    unsure = sorted({a["address"] for a in aligned if a.get("identifiable") is False and not a.get("estimated")})
+    said = f"tracks {', '.join(tracked)}"
+    if len(tracked) == 1:
+        said += (f": a lap time is explained by one parameter, so another cause of slower laps (a tired battery, a "
+                 f"warm motor) is read as a change of {tracked[0]}: the evidence cannot tell them apart")
+    else:
+        said += ": each on its own (the forecast is the soonest)"
+    if unsure:
+        said += f"; some alignments of {', '.join(unsure)} say other values explain the laps as well"
+    return said
+
+
+def _soonest(forecasts):
+    """The forecast of the parameter that fails the gains first (by median; one with a number before one
+    without)."""
+    ranked = sorted(forecasts, key=lambda f: (f.laps_to_failure is None, f.laps_to_failure or 0.0, f.address))
+    return ranked[0] if ranked else None
+
+
+def report(history: History, twin: DigitalTwin | None, name: str | None = None, seed: int = 0,
+           progress: Callable[[str], None] | None = None) -> list[dict]:
+    """Per robot: laps, changes, trends and (with a ``twin``) the forecast and advice; ``progress`` hears of each
+    robot's forecast (a few seconds each) before it begins."""
     out = []
     for robot in robots(history, name):
         with history.begin() as c:
@@ -116,9 +154,16 @@ def report(history: History, twin: DigitalTwin | None, name: str | None = None, 
             entry["trends"][address] = t.summary() if t else None
         gains = gains_in_force(laps, changes)
         entry["gains_in_force"] = gains
-        trends = [t for t in (trend_of(aligned, a, TREND_POINTS) for a in entry["trends"]) if t is not None]
-        if twin is not None and trends and gains and laps:
-            f = forecast_failure(twin, gains, trends[0], laps[-1]["n"], seed=seed)
-            entry["forecast"], entry["advice"] = f.summary(), list(f.advice)
+        if twin is not None and gains and laps:
+            if progress is not None:
+                progress(f"forecasting robot {robot['name']}: filtering its evidence, racing its gains on the twin")
+            entry["forecasts"] = {a: forecast_failure(twin, gains, aligned, laps, a, laps[-1]["n"], seed=seed)
+                                  for a in sorted(entry["trends"])}
+            f = _soonest(entry["forecasts"].values())
+            entry["causes_tracked"] = sorted(entry["forecasts"])
+            entry["causes_note"] = causes_note(entry["causes_tracked"], aligned)
+            entry["forecasts"] = {a: x.summary() for a, x in entry["forecasts"].items()}
+            if f is not None:
+                entry["forecast"], entry["advice"] = f.summary(), list(f.advice)
         out.append(entry)
     return out

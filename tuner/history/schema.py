@@ -8,7 +8,8 @@ fleet) with other programs' tables.
 * ``lf_laps``: every lap: lap time, completed or why not, cross-track error, energy (the twin's laps; a robot does not
   report it), the gains in force (their command's sequence number and values), the twin's prediction and the
   aligned values at the time.
-* ``lf_alignments``: each alignment: the value, its consistent interval, what it explained.
+* ``lf_alignments``: each alignment: the laps it measured (``first_lap`` to ``lap``), the value, its consistent
+  interval, what it explained; ``estimated`` marks the live twin's estimate from failed laps, which is no evidence.
 * ``lf_gain_changes``: each change of gains the twin decided: sent, answered (ACK, NAK and why, silence), in force,
   confirmed or rolled back, with the prediction it was sent on.
 * ``lf_events``: every other action of the live twin (boot, adopt, hold, retune, stored, …), as it was journaled.
@@ -77,7 +78,7 @@ laps = _of_a_run(
 
 alignments = _of_a_run(
     "lf_alignments",
-    sa.Column("lap", sa.Integer),
+    sa.Column("lap", sa.Integer),  # the last lap it measured (a robot's lap number in its run)
     sa.Column("time", sa.Float),
     sa.Column("address", sa.String(64), nullable=False),
     sa.Column("before", sa.Float),
@@ -89,6 +90,8 @@ alignments = _of_a_run(
     sa.Column("measured_lap_time_s", sa.Float),
     sa.Column("message", sa.Text),
     sa.Column("reason", sa.Text),
+    sa.Column("first_lap", sa.Integer),  # the first lap it measured (migration 0002)
+    sa.Column("estimated", sa.Boolean),  # an estimate from failed laps, not a measurement: never evidence
 )
 
 gain_changes = _of_a_run(

@@ -30,12 +30,19 @@ class Trend:
         return dataclasses.asdict(self)
 
 
+def measured(a: dict) -> bool:
+    """Is this alignment evidence: explained, with a value, and measured (not the live twin's estimate from failed
+    laps, ``from_failures`` live or ``estimated`` in the history)?"""
+    return bool(a.get("explained")) and a.get("value") is not None and not (a.get("from_failures")
+                                                                           or a.get("estimated"))
+
+
 def _points(alignments: Iterable[dict], address: str) -> list[tuple[float, float, float]]:
     """(lap, value, σ) of each explained alignment of ``address``; σ from its consistent interval (a 95 % range
     is ±2σ), at least 0.1 % of the value."""
     out = []
     for a in alignments:
-        if a.get("address", address) != address or not a.get("explained") or a.get("value") is None:
+        if a.get("address", address) != address or not measured(a):
             continue
         v = float(a["value"])
         interval = a.get("interval")

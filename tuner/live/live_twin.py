@@ -130,9 +130,10 @@ class LiveTwin:
             if self.actor.busy():
                 self.streak = 0  # a change is being confirmed: its laps are the actor's to judge
         if not replay and self.streak >= self.o.k_laps and self._thread is None:
-            recent = [e["robot_lap_time_s"] for e in self.laps[-self.o.k_laps:] if e["robot_lap_time_s"]]
-            if recent:
-                self._start_alignment(float(np.mean(recent)), entry)
+            measured = [e for e in self.laps[-self.o.k_laps:] if e["robot_lap_time_s"]]
+            if measured:
+                self._start_alignment(float(np.mean([e["robot_lap_time_s"] for e in measured])), entry,
+                                      (measured[0]["lap"], measured[-1]["lap"]))
             elif self.actor is not None:  # every lap failed: no lap time to align on, but failures say much
                 self._apply_alignment(result=self._from_failures())
         if self.actor is not None:
@@ -141,12 +142,16 @@ class LiveTwin:
     def _from_failures(self) -> dict:
         """When the robot's last laps all failed with gains the twin finishes with: where it is now along the
         trend of its alignments, else the most the parameter can be (the value where the twin's laps with these
-        gains first fail, raced downward from the twin's value: the robot's must lie beyond it)."""
+        gains first fail, raced downward from the twin's value: the robot's must lie beyond it). An estimate, not
+        a measurement: it moves the twin (so that acting can re-tune) but is marked ``from_failures`` and claims
+        no interval, and no trend or forecast takes it as evidence (:func:`tuner.history.trend.measured`)."""
         address, value = self.o.address, self.twin.space.get(self.o.address)
         t = trend_of(self.alignments, address)
+        failed = self.laps[-self.streak:] if self.streak else self.laps[-1:]
+        laps = (failed[0]["lap"], failed[-1]["lap"])
         reason = f"the robot's last {self.streak} laps failed, the twin's finish at {address} = {value:.4g}"
-        if t is not None and (t.at(len(self.laps)) - value) * t.slope > 0:
-            est = t.at(len(self.laps))
+        if t is not None and (t.at(laps[1]) - value) * t.slope > 0:
+            est = t.at(laps[1])
             how = f"its trend ({t.slope:+.3g} per lap) puts it at {est:.4g} now"
         else:
             p = self.twin.space.parameter(address)
@@ -154,14 +159,13 @@ class LiveTwin:
             end = max(p.lower, value * 0.5) if (t is None or t.slope <= 0) else min(p.upper, value * 1.5)
             est, _, _ = first_failure(self.twin, gains, address, value, end, 1, self.o.seed, self._limits())
             if est is None:
-                return {"explained": False, "value": None, "reason": reason, "before": value,
-                        "message": f"the twin's laps with these gains finish from {value:.4g} to {end:.4g}: the "
+                return {"explained": False, "value": None, "reason": reason, "before": value, "laps": laps,
+                        "from_failures": True, "message": f"the twin's laps with these gains finish from {value:.4g} to {end:.4g}: the "
                                    "failures are not explained by it"}
             how = f"the twin's laps with these gains first fail at {est:.4g}"
-        margin = abs(est) * 0.05
         return {"explained": True, "value": est, "reason": reason, "before": value, "measured_lap_time_s": None,
                 "message": f"{address} estimated from failed laps: {how}", "from_failures": True,
-                "interval": [est - margin, est + margin], "identifiable": False}
+                "interval": None, "identifiable": False, "laps": laps}
 
     def _limits(self) -> LapLimits:
         """Laps of the twin's own searches end as failures at twice the robot's lap (not at 60 s)."""
@@ -175,7 +179,8 @@ class LiveTwin:
         if self.on_record and not replay:
             self.on_record({"kind": "lap", **entry, "lap_record": lap, "twin_lap": twin_lap})
 
-    def _start_alignment(self, measured: float, why: dict) -> None:
+    def _start_alignment(self, measured: float, why: dict, laps: tuple[int, int]) -> None:
+        """Align on ``measured`` [s], the mean lap time of the robot's laps ``laps`` (first, last)."""
         values = dict(self.twin.space.values)
         twin_s = "failed" if why["twin_lap_time_s"] is None else f"{why['twin_lap_time_s']:.3f} s"
         reason = (f"robot laps {measured:.3f} s (mean of the completed of {self.o.k_laps}) against the twin's "
@@ -189,11 +194,12 @@ class LiveTwin:
                                    limits=LapLimits(timeout_s=max(2 * measured, measured + 10)))
                 interval = getattr(r, "consistent", None)
                 self._result = {"explained": r.explained, "value": r.value, "message": r.message, "reason": reason,
-                                "measured_lap_time_s": measured, "before": values[self.o.address],
+                                "measured_lap_time_s": measured, "before": values[self.o.address], "laps": laps,
                                 "interval": list(interval) if interval else None,
                                 "identifiable": getattr(r, "identifiable", None)}
             except Exception as e:  # the live loop goes on; the failure is reported, not raised here
-                self._result = {"explained": False, "value": None, "message": f"alignment failed: {e}", "reason": reason}
+                self._result = {"explained": False, "value": None, "message": f"alignment failed: {e}", "reason": reason,
+                                "laps": laps}
 
         if self.actor is not None:
             work()  # acting decides in order: the alignment, then what to do with it, before the next lap
@@ -209,7 +215,8 @@ class LiveTwin:
             self._thread.join()
             result, self._thread = self._result, None
         r, self._result = result, None
-        r["lap"] = len(self.laps)
+        first, last = r.pop("laps", None) or (len(self.laps) - 1, len(self.laps) - 1)
+        r["first_lap"], r["lap"] = first, last  # the laps it measured, not when its result arrived
         r["time"] = time.time()
         r["address"] = self.o.address
         r["robot"] = self.assembler.header.robot if self.assembler.header else None

@@ -42,9 +42,11 @@ def add_parser(sub) -> None:
     p.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty, stable across restarts")
     p.add_argument("--echo", metavar="FILE", help="append every line sent to FILE")
     o.add_firmware(p, "the robot (with avr or a program file, the lines are the MCU's UART output)")
-    p.add_argument("--drift", action="append", metavar="ADDRESS=START:END@LAPS",
-                   help="a hidden parameter drifting linearly from START (lap 0) to END (lap LAPS), e.g. worn tyres "
-                        "motion.mu=0.9:0.55@80; repeatable")
+    p.add_argument("--drift", action="append", metavar="ADDRESS=START:END@LAPS[:SHAPE]",
+                   help="a hidden parameter drifting from START (lap 0) to END (lap LAPS), e.g. worn tyres "
+                        "motion.mu=0.9:0.55@80; SHAPE linear (default), accelerating (START + (END − START)·(lap/LAPS)²) "
+                        "or step@K (renewed at lap K: back to START, drifting again); repeatable, one per parameter "
+                        "(two causes at once: motion.mu=… and motor.supply_voltage=…)")
     p.add_argument("--robot-id", default="lf-1", metavar="ID", help="the robot's id in its wire headers (1-16 of A-Z a-z 0-9 _ -)")
     p.add_argument("--wire", type=int, choices=(1, 2), default=2,
                    help="the wire version it speaks: 2 (an id, answers commands) or 1 (an older robot: neither)")
@@ -90,7 +92,8 @@ def _echo_writer(f):
 
 def run(args: argparse.Namespace) -> int:
     with loading():
-        from twin.link.emulator import Drift, NoReader, check_link_path, firmware_lap_records, lap_records
+        from twin.link.emulator import (Drift, NoReader, check_drifts, check_link_path, firmware_lap_records,
+                                        lap_records)
         from twin.pil.board import load_script
 
     out = Output(args.json)
@@ -103,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
         args.gains_warning = tw.gains_warning(args, twin)
         twin.model()
         drifts = [Drift.parse(d, twin) for d in args.drift or ()]
+        check_drifts(drifts)
         robot = _robot_end(args, twin)
         if args.firmware == "c":
             lines = lap_records(twin, args.seed, args.every, args.laps, robot, drifts)

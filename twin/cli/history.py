@@ -8,6 +8,7 @@ import argparse
 import json
 import math
 import os
+import sys
 
 from lf_common.files import check_output_dir, input_file, output_dir
 from twin.cli import options as o
@@ -36,7 +37,7 @@ def add_parser(sub) -> None:
     o.add_out_dir(p, "a chart per robot (history_<robot>.png) and history.json", None)
     o.add_json(p)
     o.add_recording(p, "each robot's lap times, aligned parameters and gain changes")
-    o.add_verbose(p)
+    o.add_verbose(p, quiet=True)
     p.set_defaults(run=run)
 
 
@@ -76,9 +77,14 @@ def run(args: argparse.Namespace) -> int:
     twin = None if args.no_forecast else tw.twin_from_args(args)
     history = History(args.db)
     try:
-        entries = report(history, twin, args.robot_id, args.seed)
+        quiet = args.json or args.quiet
+        entries = report(history, twin, args.robot_id, args.seed,
+                         None if quiet else lambda text: print(text, file=sys.stderr, flush=True))
     finally:
         history.close()
+    if not entries:
+        raise TwinError(f"--db {display(args.db)}: the history holds no robot yet (live, lap, tune and align write "
+                        "one with --db)")
     charts = []
     if args.out_dir:
         with output_dir(args.out_dir, "history folder") as tmp:
@@ -107,19 +113,18 @@ def _say(out: Output, e: dict) -> None:
     for ch in e["changes"]:
         out.say(f"  gains #{ch['seq']} ({ch['kind']}, decided at lap {ch['decided_lap']}): {ch['status']}"
                 + (f" — {ch['outcome']}" if ch["outcome"] else ""))
-    for address, t in e["trends"].items():
-        if t:
-            out.say(f"  {address}: {t['slope']:+.3g} per lap (± {1.96 * t['slope_se']:.2g}, 95 %) over "
-                    f"{t['points']} alignments, {t['intercept'] + t['slope'] * t['last_lap']:.4g} at lap {t['last_lap']}")
+    for address, f in (e.get("forecasts") or {}).items():
+        if f["rate"] is not None:
+            lo, mid, hi = f["rate"]
+            out.say(f"  {address}: {f['value_now']:.4g} at lap {f['now_lap']}, {mid:+.3g} per lap (90 %: {lo:+.3g} to "
+                    f"{hi:+.3g}), from {f['evidence']['alignments']} alignments and {f['evidence']['laps']} laps")
+    if e.get("causes_note"):
+        out.say(f"  causes: {e['causes_note']}")
     f = e["forecast"]
     if f:
-        if f["laps_to_failure"] is None:
-            out.say(f"  forecast: {f['note']}")
-        else:
-            lo, hi = f["interval"]
-            hi_s = "∞" if hi is None else f"{hi:.0f}"
-            out.say(f"  forecast: {f['note']}: in {f['laps_to_failure']:.0f} laps (95 %: {lo:.0f}–{hi_s}) from lap "
-                    f"{f['now_lap']}")
+        out.say(f"  forecast (from lap {f['now_lap']}): {f['statement']}")
+        if f["raced"] is not None:  # what it rests on (nothing was raced on too little evidence)
+            out.say(f"    {f['note']}")
     for a in e["advice"]:
         out.say(f"  advice: {a}")
 

@@ -8,8 +8,8 @@ own sample times, offset by the laps before it; lap k uses noise seed ``seed + k
 
 It speaks wire version 2 (:mod:`twin.telemetry.wire`): its id in every header, and the twin's commands answered
 between lines by its :class:`twin.link.robot_end.RobotEnd`; gains a SET changed take effect at the next lap start,
-which is simulated only then. A hidden parameter may drift (:class:`Drift`: worn tyres, a tiring battery), linearly
-from lap to lap. With ``lockstep`` the robot waits after each lap until the twin has sent it a command (a live twin
+which is simulated only then. Hidden parameters may drift (:class:`Drift`: worn tyres, a tiring battery), from lap to
+lap: linearly, accelerating, or renewed at a lap (a step), several at once. With ``lockstep`` the robot waits after each lap until the twin has sent it a command (a live twin
 that acts sends one every lap): at any ``speed`` the laps then run with the gains the twin chose after the lap
 before, as they would at real time on a twin that keeps up.
 
@@ -43,39 +43,67 @@ from twin.telemetry.wire import Event, Header, Sample, WireError, decode, encode
 log = logging.getLogger(__name__)
 
 
+SHAPES = ("linear", "accelerating", "step")
+
+
 @dataclasses.dataclass(frozen=True)
 class Drift:
-    """A hidden parameter that drifts linearly from ``start`` (lap 0) to ``end`` (lap ``laps``), then stays."""
+    """A hidden parameter that drifts from ``start`` (lap 0) to ``end`` (lap ``laps``), then stays, in a ``shape``:
+
+    * ``linear``: at a constant rate;
+    * ``accelerating``: start + (end − start)·(lap/laps)²: its rate grows lap by lap (worn tyres wear faster);
+    * ``step``: linearly, but at lap ``step_lap`` the part is renewed (a tyre swapped, a battery charged): the value
+      is back at ``start`` and drifts again from there.
+    """
 
     address: str
     start: float
     end: float
     laps: int
+    shape: str = "linear"
+    step_lap: int | None = None
 
     def at(self, lap: int) -> float:
-        return self.start + (self.end - self.start) * min(lap / self.laps, 1.0)
+        if self.shape == "step" and lap >= self.step_lap:
+            lap -= self.step_lap
+        f = min(lap / self.laps, 1.0)
+        return self.start + (self.end - self.start) * (f * f if self.shape == "accelerating" else f)
 
     @classmethod
     def parse(cls, text: str, twin: DigitalTwin) -> "Drift":
-        """``ADDRESS=START:END@LAPS``, checked against the model space (a parameter that rebuilds the robot
-        cannot change between laps)."""
+        """``ADDRESS=START:END@LAPS[:linear|accelerating|step@K]``, checked against the model space (a parameter
+        that rebuilds the robot cannot change between laps)."""
         address, eq, rest = text.partition("=")
-        span, at, laps = rest.partition("@")
+        span, at, tail = rest.partition("@")
         start, colon, end = span.partition(":")
+        laps, _, shape = tail.partition(":")
+        shape, step, step_lap = shape.partition("@")
         try:
-            if not (eq and at and colon):
+            if not (eq and at and colon) or (shape or "linear") not in SHAPES or bool(step) != (shape == "step"):
                 raise ValueError
-            drift = cls(address.strip(), float(start), float(end), int(laps))
+            drift = cls(address.strip(), float(start), float(end), int(laps), shape or "linear",
+                        int(step_lap) if step else None)
         except ValueError:
-            raise TwinError(f"--drift {text}: expected ADDRESS=START:END@LAPS, e.g. motion.mu=0.9:0.55@80") from None
+            raise TwinError(f"--drift {text}: expected ADDRESS=START:END@LAPS[:linear|accelerating|step@K], e.g. "
+                            "motion.mu=0.9:0.55@80 or motion.mu=0.9:0.55@80:step@50") from None
         p = twin.space.parameter(drift.address)
         if p.cost is ChangeCost.REBUILD:
             raise TwinError(f"--drift {drift.address}: rebuilds the robot or track, so it cannot drift between laps")
         if drift.laps < 1:
             raise TwinError(f"--drift {text}: LAPS must be at least 1")
+        if drift.step_lap is not None and drift.step_lap < 1:
+            raise TwinError(f"--drift {text}: the step's lap K must be at least 1")
         p.check(f"--drift {drift.address} start", drift.start)
         p.check(f"--drift {drift.address} end", drift.end)
         return drift
+
+
+def check_drifts(drifts: Sequence[Drift]) -> None:
+    """Several causes at once, one drift each."""
+    seen = [d.address for d in drifts]
+    twice = sorted({a for a in seen if seen.count(a) > 1})
+    if twice:
+        raise TwinError(f"--drift {twice[0]}: given more than once (one drift per parameter)")
 
 
 def drifted(drifts: Sequence[Drift], lap: int) -> dict[str, float]:

@@ -1,0 +1,77 @@
+"""Remaining useful life by Monte Carlo: each particle of the degradation state (:mod:`tuner.prognostics.
+particle_filter`) is carried forward lap by lap (v ← v + r, r ← r + N(0, q²), as the filter does) and each lap is
+raced against the failure model: it fails with probability p_fail(v). The first lap that fails is that future's
+end of life; over all particles, the distribution of the number of laps, after the last lap seen, to the first
+failed lap of the gains in force. Futures that have not failed within ``horizon`` laps are censored (+∞): a
+quantile beyond the horizon is an open end, never a made-up number.
+
+The same futures give when the parameter reaches a service limit (the worn end of the robust envelope).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from tuner.prognostics.evidence import FailureModel
+from tuner.prognostics.particle_filter import DegradationState
+
+HORIZON = 1000  # [laps]
+QUANTILES = (0.05, 0.10, 0.25, 0.50, 0.75, 0.90, 0.95)
+
+
+@dataclasses.dataclass(frozen=True)
+class RemainingLife:
+    """Laps after the last lap seen to the first failed lap, per future (``inf`` beyond the horizon)."""
+    laps: np.ndarray  # (futures,) 1 = the next lap fails
+    horizon: int
+    service_laps: np.ndarray | None = None  # (futures,) laps until the service limit is reached (0: already)
+
+    def quantile(self, q: float) -> float:
+        x = float(np.quantile(self.laps, q, method="inverted_cdf"))
+        return x if x <= self.horizon else math.inf
+
+    def quantiles(self) -> dict[str, float | None]:
+        """{"5": …, …, "95": …} in laps; None for an open end (beyond the horizon)."""
+        return {f"{round(q * 100)}": _finite(self.quantile(q)) for q in QUANTILES}
+
+    def within(self, laps: float) -> float:
+        """The probability that the first failure comes within ``laps`` laps."""
+        return float(np.mean(self.laps <= laps))
+
+    def service_median(self) -> float | None:
+        if self.service_laps is None:
+            return None
+        x = float(np.quantile(self.service_laps, 0.5, method="inverted_cdf"))
+        return None if x > self.horizon else x
+
+
+def _finite(x: float) -> float | None:
+    return None if math.isinf(x) else x
+
+
+def remaining_life(state: DegradationState, failure: FailureModel, q: float, seed: int = 0,
+                   horizon: int = HORIZON, service_limit: float | None = None) -> RemainingLife:
+    """The distribution of laps to the first failure from ``state`` (its last lap), rate walk ``q`` [unit per lap
+    per lap]; with a ``service_limit`` (on the failing side) also when it is reached."""
+    rng = np.random.default_rng(seed)
+    v, r = state.value.copy(), state.rate.copy()
+    n = len(v)
+    first = np.full(n, np.inf)
+    service = None
+    if service_limit is not None:
+        service = np.where(failure.direction * (v - service_limit) >= 0, 0.0, np.inf)
+    alive = np.ones(n, dtype=bool)
+    for k in range(1, horizon + 1):
+        v = v + r
+        r = r + q * rng.standard_normal(n)
+        fails = alive & (rng.random(n) < failure.p_fail(v, state.shift))
+        first[fails] = k
+        alive &= ~fails
+        if service is not None:
+            service[np.isinf(service) & (failure.direction * (v - service_limit) >= 0)] = k
+        if not alive.any() and (service is None or not np.isinf(service).any()):
+            break
+    return RemainingLife(first, horizon, service)
