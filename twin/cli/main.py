@@ -7,6 +7,7 @@ from twin.cli import (align, build, design, diagnose, emulate, firmware, fmu, gr
                       tune, view)
 from twin.cli import options as o
 from twin.cli.guard import run_command
+from twin.cli.startup import loading
 
 
 def parser() -> o.Parser:
@@ -21,7 +22,8 @@ def parser() -> o.Parser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_or_exit_code(argv)
+    with loading():  # Ctrl-C while the parsers are built or the flags checked: exit 130 at once, no traceback
+        args = parser().parse_or_exit_code(argv)
     if isinstance(args, int):
         return args
     return run_command(args.run, args)

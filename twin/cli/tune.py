@@ -254,7 +254,8 @@ def parser() -> o.Parser:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m tuner``."""
-    args = parser().parse_or_exit_code(argv)
+    with loading():  # Ctrl-C while the parsers are built or the flags checked: exit 130 at once, no traceback
+        args = parser().parse_or_exit_code(argv)
     if isinstance(args, int):
         return args
     return run_command(run, args)
