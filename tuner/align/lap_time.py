@@ -213,10 +213,11 @@ def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0, l
         for v, tt in zip(xs, t):
             if tt is not None and abs(tt - m) < abs(lap - m):
                 value, lap = v, tt
-            if ((math.inf if tt is None else tt) - m) * (ta - m) > 0:
-                a, ta = v, (math.inf if tt is None else tt)
+            side = math.inf if tt is None else tt  # a failed lap: slower than any measurement
+            if (side - m) * (ta - m) > 0:
+                a, ta = v, side
             else:
-                b, tb = v, (math.inf if tt is None else tt)
+                b, tb = v, side
         if abs(lap - m) <= TOLERANCE * m or _resolved(a, b):
             break  # on the measurement, or as fine as values go (near a limit the noise makes t(p) jagged below it)
         slope = None

@@ -161,7 +161,8 @@ double lf_read_sensor_at(const mjModel *m, const mjData *d, lf_sim *s, int32_t i
 }
 
 /* `reads` readings of every sensor at this pose into s->raw, the calibration taking all but the last (Pololu's
-   calibrate reads ten times per call); the light path is traced once, each reading draws its own noise. Returns sensor 0's height [m]. ahead_s, tan_half: as for sense. */
+   calibrate reads ten times per call); the light path is traced once, each reading draws its own noise. Returns
+   sensor 0's height [m]. ahead_s, tan_half: as for sense. */
 static double read_sensors(const mjModel *m, const mjData *d, lf_sim *s, int32_t reads, double ahead_s,
                            double tan_half) {
   double reflectance[LF_MAX_SENSORS], height[LF_MAX_SENSORS];
