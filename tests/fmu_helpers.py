@@ -82,10 +82,51 @@ def build_controller(twin: DigitalTwin, path: str, position_input: bool = False,
         os.makedirs(os.path.join(tree, "binaries", "linux64"))
         subprocess.run(["gcc", "-std=c99", "-O2", "-ffp-contract=off", "-fPIC", "-shared", f"-I{work}",
                         f"-I{os.path.join(os.path.dirname(fmpy.__file__), 'c-code')}", f"-I{CSRC}",
-                        os.path.join(HERE, "fmu", "controller.c"), os.path.join(CSRC, "firmware", "line_follower.c"),
+                        os.path.join(HERE, "fmu", "controller.c"), os.path.join(HERE, "fmu", "fmi2_common.c"),
+                        os.path.join(CSRC, "firmware", "line_follower.c"),
                         "-o", os.path.join(tree, "binaries", "linux64", "controller.so"), "-lm"], check=True)
         with open(os.path.join(tree, "modelDescription.xml"), "w") as f:
             f.write(_xml(names, step, kp=p.k_p))
+        return _zip(tree, path)
+
+
+LFR_GUID = "{adb6056a-0f07-4642-8ed3-b77b0de5f196}"  # LFRController_Standalone.fmu's, as lfr_controller.c has it
+# (name, causality, variability, start) in value-reference order, as that FMU's modelDescription.xml declares them
+LFR_VARIABLES = (("backwardRotate", "parameter", "fixed", 1.0), ("forwardRotate", "parameter", "fixed", 5.0),
+                 ("forwardSpeed", "parameter", "fixed", 4.0), ("lfLeftVal", "input", "discrete", 0.0),
+                 ("lfRightVal", "input", "discrete", 0.0), ("servoLeftVal", "output", "discrete", 0.0),
+                 ("servoRightVal", "output", "discrete", 0.0), ("total_energy_used", "input", "discrete", 0.0))
+
+
+def build_lfr_controller(path: str, units: dict[str, str] | None = None) -> str:
+    """A controller FMU of the INTO-CPS kind (tests/fmu/lfr_controller.c: the LFRController's variables and bang-bang
+    law; its parameters 0 unless set) at ``path``; ``units`` {variable: unit} declares units it does not have."""
+    units = units or {}
+    rows = []
+    for vr, (name, causality, variability, start) in enumerate(LFR_VARIABLES):
+        initial = {"parameter": ' initial="exact"', "output": ' initial="approx"'}.get(causality, "")
+        unit = f' unit="{units[name]}"' if name in units else ""
+        rows.append(f'    <ScalarVariable name="{name}" valueReference="{vr}" causality="{causality}" '
+                    f'variability="{variability}"{initial}><Real start="{start!r}"{unit}/></ScalarVariable>')
+    outputs = "".join(f'<Unknown index="{i + 1}" dependencies=""/>' for i, v in enumerate(LFR_VARIABLES)
+                      if v[1] == "output")
+    xml = f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="LFRController" guid="{LFR_GUID}" variableNamingConvention="flat">
+  <CoSimulation modelIdentifier="LFRController" canHandleVariableCommunicationStepSize="true"/>
+  <ModelVariables>
+{chr(10).join(rows)}
+  </ModelVariables>
+  <ModelStructure><Outputs>{outputs}</Outputs><InitialUnknowns>{outputs}</InitialUnknowns></ModelStructure>
+</fmiModelDescription>
+"""
+    with tempfile.TemporaryDirectory() as tree:
+        os.makedirs(os.path.join(tree, "binaries", "linux64"))
+        subprocess.run(["gcc", "-std=c99", "-O2", "-fPIC", "-shared",
+                        f"-I{os.path.join(os.path.dirname(fmpy.__file__), 'c-code')}",
+                        os.path.join(HERE, "fmu", "lfr_controller.c"), os.path.join(HERE, "fmu", "fmi2_common.c"),
+                        "-o", os.path.join(tree, "binaries", "linux64", "LFRController.so")], check=True)
+        with open(os.path.join(tree, "modelDescription.xml"), "w") as f:
+            f.write(xml)
         return _zip(tree, path)
 
 

@@ -134,7 +134,7 @@ def test_the_library_refuses_an_fmi_1_controller(tmp_path):
 
 @pytest.mark.parametrize("argv, needle", [
     (["--map", "x=line_angle"], "--map: maps the variables of a --controller-fmu"),
-    (["--controller-fmu", "{odd}", "--map", "x"], "expected FMU_VARIABLE=TWIN_PORT"),
+    (["--controller-fmu", "{odd}", "--map", "x"], "expected FMU_VARIABLE=[-][SCALE*]TWIN_PORT"),
     (["--controller-fmu", "{odd}"], "its inputs: x; its outputs: y1, y2"),
     (["--controller-fmu", "{angle}", "--firmware", "avr"], "leave out --firmware"),
     (["--controller-fmu", "missing.fmu"], "no such file"),

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from twin.pil.board import BoardReport
 
 HELP = "calibrate and run one closed-loop lap; print the lap time and a summary"
+ACTUATIONS = {"voltage": "voltages", "setpoint": "wheel-speed set-points", "duty": "PWM duties"}
 
 
 def add_parser(sub) -> None:
@@ -33,8 +34,12 @@ def add_parser(sub) -> None:
     p.add_argument("--controller-fmu", metavar="C.fmu", help="a controller FMU (FMI 2 or 3 Co-Simulation) drives "
                    "instead of the firmware, at its sample time: the line sensors' side in, motor voltages or wheel-speed "
                    "set-points out (the firmware still calibrates)")
-    p.add_argument("--map", action="append", metavar="FMU_VARIABLE=TWIN_PORT", help="connect a variable of the "
-                   "--controller-fmu to a twin port, repeatable (default: by name)")
+    p.add_argument("--map", action="append", metavar="FMU_VARIABLE=[-][SCALE*]TWIN_PORT[+OFFSET]", help="connect a "
+                   "variable of the --controller-fmu to a twin port, with sign, scale and offset (FMU_VARIABLE = "
+                   "SCALE*TWIN_PORT+OFFSET; e.g. servoRightVal=-1*wheel_duty_right), repeatable (default: by name; "
+                   "an input no port maps keeps its start value)")
+    p.add_argument("--controller-param", action="append", metavar="NAME=VALUE", help="set a parameter of the "
+                   "--controller-fmu before its initialisation, repeatable (default: the FMU's own start values)")
     o.add_db(p, "the lap")
     o.add_json(p)
     o.add_recording(p, "the lap")
@@ -52,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         from mjcf.maze import Maze
         from twin.core.closed_loop import run_laps
         from twin.core.lap import LapLimits
-        from twin.fmi import ControllerFmu, parse_map, run_controller_lap
+        from twin.fmi import ControllerFmu, parse_map, parse_params, run_controller_lap
         from twin.pil.board import BoardReport, Operator, run_program_lap, runnable_program
         from twin.pil.lap import run_pil_lap
         from twin.viz import recording
@@ -65,13 +70,17 @@ def run(args: argparse.Namespace) -> int:
     warning = tw.gains_warning(args, twin)
     limits, keep = LapLimits(timeout_s=args.lap_timeout), bool(args.save or args.view)
     mcu = controller = None
-    if args.map and not args.controller_fmu:
-        raise TwinError("--map: maps the variables of a --controller-fmu; give one")
+    for flag, given in (("--map", args.map), ("--controller-param", args.controller_param)):
+        if given and not args.controller_fmu:
+            raise TwinError(f"{flag}: {'maps the variables' if flag == '--map' else 'sets the parameters'} of a "
+                            "--controller-fmu; give one")
     if args.controller_fmu:
         if args.firmware != "c":
             raise TwinError("--controller-fmu: the controller FMU drives instead of the firmware; leave out --firmware")
         controller = ControllerFmu(args.controller_fmu, parse_map(args.map), int(twin.space.get("sensor.count")),
-                                   twin.space.get("control.dt"))
+                                   twin.space.get("control.dt"), parse_params(args.controller_param))
+        for name, value in controller.left_at_start.items():
+            out.say(f"note: the controller's input {name} keeps its start value {value} (no twin port maps to it)")
         try:
             result = run_controller_lap(twin, controller, seed=args.seed, limits=limits, keep_trace=keep)
         finally:
@@ -116,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
         _say_board(out, board)
     elif controller:
         out.say(f"driven by {args.controller_fmu} (FMI {controller.fmi_version}, every "
-                f"{controller.sample_time * 1000:g} ms; {controller.actuation}s out); seed {args.seed}")
+                f"{controller.sample_time * 1000:g} ms; {ACTUATIONS[controller.actuation]} out); seed {args.seed}")
     else:
         out.say(f"gains: v_max={p['control.v_max']:g} m/s, K_B={p['control.kb']:g}, K_P={p['control.kp']:g}, "
                 f"K_I={p['control.ki']:g}, K_D={p['control.kd']:g}, Δt={p['control.dt'] * 1000:g} ms; "

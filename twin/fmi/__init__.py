@@ -7,13 +7,17 @@ The names load on first use: the controller's own process (``python -m twin.fmi.
 must not pay for MuJoCo."""
 
 __all__ = ["CLOSED_LOOP", "DRIVE_PORTS", "ControllerFmu", "ExportedFmu", "KINDS", "PLANT", "Variable",
-           "WalledController", "export_fmu", "fmu_is_ours", "fmu_variables", "parse_map", "run_controller_lap",
-           "sense_ports"]
+           "WalledController", "export_fmu", "fmu_is_ours", "fmu_variables", "Link", "parse_map", "parse_params",
+           "run_controller_lap", "sense_ports"]
 
 
 def __getattr__(name: str):
-    if name in ("DRIVE_PORTS", "ControllerFmu", "parse_map", "sense_ports"):
+    if name in ("DRIVE_PORTS", "ControllerFmu", "sense_ports"):
         from twin.fmi import controller as module
+    elif name in ("Link", "parse_map"):
+        from twin.fmi import mapping as module
+    elif name == "parse_params":
+        from twin.fmi import parameters as module
     elif name == "run_controller_lap":
         from twin.fmi import controller_lap as module
     elif name in ("ExportedFmu", "export_fmu", "fmu_is_ours"):

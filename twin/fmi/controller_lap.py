@@ -55,14 +55,22 @@ def _diverged(data: mujoco.MjData) -> bool:
     return any(data.warning[w].number for w in BAD) or not np.isfinite(data.qpos).all()
 
 
+def white_8bit(calibrated: int) -> int:
+    """A calibrated reading (0 white … 1000 black) on the white-high 8-bit scale (0 black … 255 white) of the
+    INTO-CPS sensor blocks: 255 (1000 − calibrated) / 1000, rounded half up, as integers."""
+    return (255 * (1000 - int(calibrated)) + 500) // 1000
+
+
 def _readers(sim: core.Sim, data: mujoco.MjData) -> dict:
     """The sensor-side ports as functions of the head and data at a tick."""
     fw = sim.fw
     out = {"line_position": lambda: fw.position, "line_angle": lambda: fw.e, "line_seen": lambda: fw.line_seen,
-           "wheel_speed_left": lambda: data.qvel[sim.dof_left], "wheel_speed_right": lambda: data.qvel[sim.dof_right]}
+           "wheel_speed_left": lambda: data.qvel[sim.dof_left], "wheel_speed_right": lambda: data.qvel[sim.dof_right],
+           "energy_used": lambda: sim.energy_j}
     for i in range(sim.nsensor):
         out[f"sensor.calibrated[{i + 1}]"] = lambda i=i: fw.value[i]
         out[f"sensor.raw[{i + 1}]"] = lambda i=i: sim.raw[i]
+        out[f"sensor.white_8bit[{i + 1}]"] = lambda i=i: white_8bit(fw.value[i])
     return out
 
 
@@ -140,8 +148,9 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
     h0 = ctypes.c_double()
     period = controller.sample_time
     readers = _readers(sim, data)
-    used = [readers[port] for port in session.ports]
-    setpoint = controller.actuation == "setpoint"
+    used = [(readers[link.port], link.to_fmu) for link in controller.inputs]
+    to_left, to_right = (link.from_fmu for link in controller.outputs)
+    per_volt = {"voltage": None, "setpoint": full_speed, "duty": 1.0}[controller.actuation]
     chunk = CHUNK_TICKS * max(1, int(np.ceil(period / model.opt.timestep - 1e-9)))
     tick = consumed = 0
     while not judge.done:
@@ -153,9 +162,10 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
                 refused = True
                 break
             if due:
-                left, right = session.step(tick * period, period, [read() for read in used])
-                if setpoint:  # PWM duty of the no-load speed, as the firmware maps wheel speeds
-                    left, right = (float(np.clip(w / full_speed, -1.0, 1.0)) * supply for w in (left, right))
+                left, right = session.step(tick * period, period, [to_fmu(read()) for read, to_fmu in used])
+                left, right = to_left(left), to_right(right)
+                if per_volt is not None:  # a PWM duty (a set-point: of the no-load speed, as the firmware maps it)
+                    left, right = (float(np.clip(w / per_volt, -1.0, 1.0)) * supply for w in (left, right))
                 lib.lf_external_command(mp, dp, sp, left, right, h0.value)  # they reach the motors with the robot's timing
                 tick += 1
             lib.lf_external_drive(dp, sp)

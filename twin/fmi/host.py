@@ -38,7 +38,8 @@ def _open(setup: dict, md, folder: str):
     from twin.fmi.session import ControllerSession
 
     controller = SimpleNamespace(path=setup["path"], md=md, fmi_version=setup["fmi_version"],
-                                 sense=dict(setup["sense"]), drive=dict(setup["drive"]))
+                                 sense=dict(setup["sense"]), drive=dict(setup["drive"]),
+                                 parameters=[tuple(p) for p in setup["parameters"]])
     try:
         return ControllerSession(controller, folder), None
     except TwinError as e:
@@ -55,8 +56,8 @@ def serve(setup: dict) -> int:
     from twin.errors import TwinError
 
     requests, replies = setup["request_fd"], setup["reply_fd"]
-    ports = [port for _, port in setup["sense"]]
-    layout = protocol.request(len(ports))
+    names = [name for name, _ in setup["sense"]]  # the FMU's inputs, in the order their values come
+    layout = protocol.request(len(names))
     md, session = None, None
     try:
         while (kind := protocol.read_exact(requests, 1)) is not None:
@@ -79,7 +80,7 @@ def serve(setup: dict) -> int:
                 return 1  # not the protocol: the twin sees this process end
             t, h, *values = layout.unpack(raw)
             try:
-                left, right = session.step(t, h, dict(zip(ports, values)))
+                left, right = session.step(t, h, dict(zip(names, values)))
             except TwinError as e:
                 protocol.send_error(replies, str(e))
                 return 0

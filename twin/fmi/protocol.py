@@ -2,7 +2,8 @@
 
 Requests, twin to host, each a kind byte first: ``L`` a new lap (the folder to extract a fresh instance into, its
 length first, uint32, UTF-8): the host closes the lap before, loads and initialises the FMU at time 0 and answers
-``R``; ``S`` one step: ``t`` and ``h`` [s] and the mapped inputs' values, all float64 (an integer or a flag travels
+``R``; ``S`` one step: ``t`` and ``h`` [s] and the mapped inputs' values (as the FMU takes them: sign, scale and offset
+applied), all float64 (an integer or a flag travels
 exactly as a double). The end of the requests (end of file) closes the FMU and ends the host. Replies, host to twin:
 a kind byte, then ``R`` ready, ``K`` the step's (left, right) outputs as two float64, or ``E`` a UTF-8 error line
 (its length first, uint32). Native byte order: both ends are one machine.

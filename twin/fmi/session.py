@@ -31,7 +31,8 @@ class ControllerSession:
 
     Args:
       controller: what runs: its ``path``, ``md`` (fmpy's model description), ``fmi_version``, ``sense`` ({FMU input:
-        twin port}) and ``drive`` ({twin drive port: FMU output}).
+        twin port}), ``drive`` ({twin drive port: FMU output}) and ``parameters`` ([(name, typed value)], set after
+        instantiation, before the initialisation).
       folder: an empty folder to extract the FMU into (the caller removes it); None: a temporary one.
     """
 
@@ -56,26 +57,43 @@ class ControllerSession:
             if self.version == 2:
                 self.fmu.instantiate(callbacks=self._fmi2_callbacks())
                 self.fmu.setupExperiment(startTime=0.0)
+                self._set_parameters(md, controller.parameters)
                 self.fmu.enterInitializationMode()
             else:
                 self.fmu.instantiate(logMessage=self._log3)
+                self._set_parameters(md, controller.parameters)
                 self.fmu.enterInitializationMode(startTime=0.0)
             self.fmu.exitInitializationMode()
+        except TwinError:
+            self.close()
+            raise
         except Exception as e:
             self.close()
             raise self._error("it failed to load or initialise", e) from None
         by_name = {v.name: v for v in md.modelVariables}
         self._inputs = []  # (setter, [vr], [port]) per type
         groups: dict[str, tuple[list, list]] = {}
-        for name, port in controller.sense.items():
+        for name in controller.sense:
             v = by_name[name]
-            vrs, ports = groups.setdefault(v.type, ([], []))
+            vrs, names = groups.setdefault(v.type, ([], []))
             vrs.append(v.valueReference)
-            ports.append(port)
-        for type_, (vrs, ports) in groups.items():
-            self._inputs.append((getattr(self.fmu, _SETTERS[self.version][type_]), type_, vrs, ports))
+            names.append(name)
+        for type_, (vrs, names) in groups.items():
+            self._inputs.append((getattr(self.fmu, _SETTERS[self.version][type_]), type_, vrs, names))
         outs = [by_name[controller.drive[p]] for p in sorted(controller.drive)]  # *_left before *_right
         self._outputs = [(self._getter(v.type), v.valueReference) for v in outs]
+
+    def _set_parameters(self, md, parameters) -> None:
+        """The twin's parameter values (checked against the FMU's types by :mod:`twin.fmi.parameters`)."""
+        by_name = {v.name: v for v in md.modelVariables}
+        for name, value in parameters:
+            v = by_name[name]
+            type_ = "Integer" if self.version == 2 and v.type == "Enumeration" else v.type
+            setter = _SETTERS[self.version].get(type_) or ("setString" if type_ == "String" else "setInt64")
+            try:
+                getattr(self.fmu, setter)([v.valueReference], [value])
+            except Exception as e:
+                raise self._error(f"it refused its parameter {name} = {value!r}", e) from None
 
     def _getter(self, type_: str):
         if self.version == 2:
@@ -113,15 +131,16 @@ class ControllerSession:
         return TwinError(f"--controller-fmu {self.path}: {what} ({' '.join(str(e).split())[:200]}){said}")
 
     def step(self, t: float, h: float, values: Mapping[str, float]) -> tuple[float, float]:
-        """Set the inputs read at ``t`` [s], step the FMU to ``t + h``, and return its (left, right) outputs."""
+        """Set the inputs (``values`` by the FMU's names) read at ``t`` [s], step the FMU to ``t + h``, and return its
+        (left, right) outputs."""
         try:
-            for setter, type_, vrs, ports in self._inputs:
+            for setter, type_, vrs, names in self._inputs:
                 if type_ == "Boolean":
-                    setter(vrs, [bool(values[p] > 0) for p in ports])
+                    setter(vrs, [bool(values[n] > 0) for n in names])
                 elif type_ in ("Real", "Float64", "Float32"):
-                    setter(vrs, [float(values[p]) for p in ports])
+                    setter(vrs, [float(values[n]) for n in names])
                 else:
-                    setter(vrs, [int(round(values[p])) for p in ports])
+                    setter(vrs, [int(round(values[n])) for n in names])
             self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
             left, right = (float(get([vr])[0]) for get, vr in self._outputs)
         except Exception as e:

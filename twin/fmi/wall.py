@@ -66,6 +66,7 @@ class ControllerHost:
         self._replies, replies_out = os.pipe()
         setup = {"path": os.path.abspath(self.path), "fmi_version": controller.fmi_version,
                  "sense": list(controller.sense.items()), "drive": dict(controller.drive),
+                 "parameters": [list(p) for p in controller.parameters],
                  "request_fd": requests_in, "reply_fd": replies_out, "parent_pid": os.getpid(),
                  "log_level": logging.getLogger("twin.fmi.controller").getEffectiveLevel()}
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (_ROOT, os.environ.get("PYTHONPATH")) if p)}
