@@ -8,7 +8,7 @@ must not pay for MuJoCo."""
 
 __all__ = ["CLOSED_LOOP", "DRIVE_PORTS", "ControllerFmu", "ExportedFmu", "KINDS", "PLANT", "Variable",
            "WalledController", "export_fmu", "fmu_is_ours", "fmu_variables", "Link", "parse_map", "parse_params",
-           "run_controller_lap", "sense_ports"]
+           "read_multi_model", "run_controller_lap", "sense_ports"]
 
 
 def __getattr__(name: str):
@@ -18,6 +18,8 @@ def __getattr__(name: str):
         from twin.fmi import mapping as module
     elif name == "parse_params":
         from twin.fmi import parameters as module
+    elif name == "read_multi_model":
+        from twin.fmi import multi_model as module
     elif name == "run_controller_lap":
         from twin.fmi import controller_lap as module
     elif name in ("ExportedFmu", "export_fmu", "fmu_is_ours"):

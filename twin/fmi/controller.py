@@ -228,6 +228,7 @@ class ControllerFmu:
       count: sensors of the twin's array (which sensor ports exist).
       control_dt: the twin's control period [s], the sample time if the FMU's DefaultExperiment has no stepSize.
       parameters: {parameter: value as text} set before the FMU's initialisation (``--controller-param``).
+      sample_time: the step [s] to run it at instead (a multi-model's co-simulation step).
 
     Attributes: ``sense`` {FMU input: twin port} and ``drive`` {twin drive port: FMU output}, with their relations
     in ``inputs`` and ``outputs`` (:class:`Link`, in the order they cross the wall; outputs left, right);
@@ -235,7 +236,8 @@ class ControllerFmu:
     """
 
     def __init__(self, path: str, mapping: Mapping[str, str | Link] | None = None, count: int = 8,
-                 control_dt: float = 0.005, parameters: Mapping[str, str] | None = None):
+                 control_dt: float = 0.005, parameters: Mapping[str, str] | None = None,
+                 sample_time: float | None = None):
         self.path = path
         self.md = read_controller(path)
         self.fmi_version = int(str(self.md.fmiVersion)[0])
@@ -251,7 +253,7 @@ class ControllerFmu:
             log.info("controller FMU %s: its input %s keeps its start value %s (no twin port maps to it)", path, name,
                      value)
         step = self.md.defaultExperiment.stepSize if self.md.defaultExperiment else None
-        self.sample_time = float(step) if step not in (None, "") else float(control_dt)
+        self.sample_time = float(sample_time or (step if step not in (None, "") else control_dt))
         if not (self.sample_time > 0 and self.sample_time <= 1.0):
             raise _fail(path, f"its sample time {self.sample_time:g} s is outside (0, 1] s")
         self._host: ControllerHost | None = None

@@ -45,8 +45,10 @@ def _typed(variable, text: str):
     return None
 
 
-def resolve_params(path: str, md, given: dict[str, str]) -> list[tuple[str, object]]:
-    """[(name, typed value)] for the FMU's parameters, or one TwinError line naming the parameter and the fault."""
+def resolve_params(path: str, md, given: dict[str, str],
+                   source: str = "--controller-param ") -> list[tuple[str, object]]:
+    """[(name, typed value)] for the FMU's parameters, or one TwinError line naming the parameter (after ``source``:
+    where it was given) and the fault."""
     variables = {v.name: v for v in md.modelVariables}
     params = [n for n, v in variables.items() if v.causality == "parameter"]
     out = []
@@ -54,15 +56,15 @@ def resolve_params(path: str, md, given: dict[str, str]) -> list[tuple[str, obje
         v = variables.get(name)
         if v is None or v.causality != "parameter":
             what = f"no parameter {name!r}" if v is None else f"{name} is of causality {v.causality}, not a parameter"
-            raise TwinError(f"--controller-param {name}={text}: {path}: {what} (its parameters: "
+            raise TwinError(f"{source}{name}={text}: {path}: {what} (its parameters: "
                             f"{', '.join(params) or 'none'})")
         value = _typed(v, text)
         if value is None:
-            raise TwinError(f"--controller-param {name}={text}: {name} is of type {v.type}; {text!r} is not a "
+            raise TwinError(f"{source}{name}={text}: {name} is of type {v.type}; {text!r} is not a "
                             f"{'finite ' if v.type in REALS else ''}{v.type} value")
         lo, hi = (getattr(v, k, None) for k in ("min", "max"))
         if isinstance(value, (int, float)) and not isinstance(value, bool) and (
                 (lo not in (None, "") and value < float(lo)) or (hi not in (None, "") and value > float(hi))):
-            raise TwinError(f"--controller-param {name}={text}: outside its range [{lo or '-inf'}, {hi or 'inf'}]")
+            raise TwinError(f"{source}{name}={text}: outside its range [{lo or '-inf'}, {hi or 'inf'}]")
         out.append((name, value))
     return out
