@@ -71,7 +71,7 @@ class ControllerSession:
             self.close()
             raise self._error("it failed to load or initialise", e) from None
         by_name = {v.name: v for v in md.modelVariables}
-        self._inputs = []  # (setter, [vr], [port]) per type
+        self._inputs = []  # (setter, type, [vr], [FMU input]) per type
         groups: dict[str, tuple[list, list]] = {}
         for name in controller.sense:
             v = by_name[name]

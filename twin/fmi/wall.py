@@ -57,7 +57,7 @@ class ControllerHost:
 
     def __init__(self, controller, step_limit_s: float = STEP_LIMIT_S, load_limit_s: float = LOAD_LIMIT_S):
         self.path, self.step_limit_s, self.load_limit_s = controller.path, step_limit_s, load_limit_s
-        self.ports = list(controller.sense.values())  # the inputs' twin ports, in the order the host maps them
+        self.ports = list(controller.sense.values())  # the inputs' twin ports, in the order their values cross
         self.outputs = [controller.drive[p] for p in sorted(controller.drive)]  # *_left before *_right
         self._layout = protocol.request(len(self.ports))
         self._folders: list[str] = []  # each lap's extracted FMU; removed once the process is done with them
