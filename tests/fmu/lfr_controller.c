@@ -4,10 +4,11 @@
  * backwardRotate, 1 forwardRotate, 2 forwardSpeed (parameters), 3 lfLeftVal, 4 lfRightVal (8-bit readings, 255
  * white), 5 servoLeftVal, 6 servoRightVal (servo commands in [-1, 1], the right servo mirrored), 7 total_energy_used
  * (an input it does not use)) and the bang-bang law of its Models/LFRController/Controller.vdmrt, written anew: a
- * reading below 150 is the line; both on it: forward at forwardSpeed; one on it: turn towards that side, the far
- * wheel at forwardRotate and the near one at backwardRotate; neither: keep the last command. Like that FMU, it
- * takes its parameters as 0 unless a master sets them, whatever start values its modelDescription declares (5, 4,
- * 1). The law runs once per doStep. */
+ * reading below 150 is the line; both on it: forward at forwardSpeed (servoLeftVal = forwardSpeed, servoRightVal =
+ * -forwardSpeed); only lfRightVal on it: servoLeftVal = backwardRotate, servoRightVal = -forwardRotate; only lfLeftVal:
+ * the mirror image; neither: keep the last command. Like that FMU, it takes its parameters as 0 unless a master sets
+ * them, whatever start values its modelDescription declares (backwardRotate 1, forwardRotate 5, forwardSpeed 4). The
+ * law runs once per doStep. */
 #include <stdlib.h>
 #include <string.h>
 
