@@ -14,7 +14,9 @@ All on one thread, timed in CPU time of that thread (``time.thread_time``) with 
 Targets: closed loop ≥ 90 % of the ceiling and ≥ 20× the Python loop. The closed loop's time is also split into
 MuJoCo's batch calls (physics and C callback) and Python between them, each measured on the same runs.
 
-  python benchmarks/bench_closed_loop.py [--python-seconds 2] [--repeat 3] [--json]
+  python benchmarks/bench_closed_loop.py [--python-seconds 2] [--repeat 11] [--quick] [--json]
+
+``--quick``: one run of each, 0.1 s of the Python loop (for CI: the script cannot rot).
 """
 
 from __future__ import annotations
@@ -145,8 +147,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--python-seconds", type=float, default=2.0, help="simulated seconds of the Python loop")
     ap.add_argument("--repeat", type=int, default=11, help="runs of each, in pairs (closed loop, ceiling)")
+    ap.add_argument("--quick", action="store_true", help="one run of each, 0.1 s of the Python loop (for CI)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
+    if args.quick:
+        args.python_seconds, args.repeat = 0.1, 1
     twin = DigitalTwin()
     model = twin.model()
     _, lap, _ = closed_loop(twin, keep_traces=True)  # warm-up; the ceiling replays this lap's voltages

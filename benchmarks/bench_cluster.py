@@ -9,7 +9,9 @@
     2-CPU run against the measurement, and what ``--predict N`` designs cost on 10 machines of 16 cores, with
     the bound if the overhead were all the driver's, one design after another (+ N · t_task).
 
-  python benchmarks/bench_cluster.py [--designs 4] [--laps 2] [--max-iter 3] [--no-ray] [--json]
+  python benchmarks/bench_cluster.py [--designs 4] [--laps 2] [--max-iter 3] [--no-ray] [--quick] [--json]
+
+``--quick``: 2 designs, 1 lap, 1 iteration each (for CI: the script cannot rot; Ray's heads still start).
 
 Designs are independent, so the model is linear in ⌈N/(M·C)⌉ waves. It assumes equal designs: tuning
 converges in different numbers of iterations, so a wave lasts as long as its slowest design and the model is
@@ -74,8 +76,11 @@ def main() -> None:
     ap.add_argument("--max-iter", type=int, default=3)
     ap.add_argument("--predict", type=int, default=1000, help="designs in the study the model prices")
     ap.add_argument("--no-ray", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="2 designs, 1 lap, 1 iteration each (for CI)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    if args.quick:
+        args.designs, args.laps, args.max_iter = 2, 1, 1
     n, out = args.designs, {"cores": os.cpu_count(), "designs": args.designs}
 
     w1, r1 = local(n, 1, args.laps, args.max_iter)

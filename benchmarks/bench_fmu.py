@@ -9,10 +9,15 @@ Measured in one run on the default robot and track, pinned to one core, in CPU s
   * ``lap``: ``run_laps`` on one thread, calibration simulated (not reused), the same turn and lap
   * plant FMU: equal voltages from fmpy's input table, 5 s at a 5 ms step
   * controller FMU in the twin's loop: the firmware's control law compiled as an FMI 2 controller (the tests' FMU),
-    driving the same lap through fmpy from the twin's Python loop
+    driving the same lap through fmpy from the twin's Python loop; also in wall time, as a user meets it, the
+    controller behind its wall (its own process): ``python -m twin.run lap --controller-fmu C.fmu --seed 3`` in a
+    fresh process (median of ``--repeat``), and ``run_controller_lap`` 6 times in one process (the first lap,
+    then the median of the later ones: each a fresh instance in the same controller process)
 Target: the closed-loop FMU in fmpy ≥ 50× real time.
 
-  python benchmarks/bench_fmu.py [--repeat 3] [--json]
+  python benchmarks/bench_fmu.py [--repeat 3] [--quick] [--json]
+
+``--quick``: one run of each, 2 laps in one process (for CI: the script cannot rot).
 """
 
 from __future__ import annotations
@@ -22,6 +27,8 @@ import gc
 import json
 import os
 import resource
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -63,11 +70,34 @@ def best(fn, repeat: int, name: str = ""):
     return min(times), out
 
 
+def controller_walls(twin: DigitalTwin, controller: ControllerFmu, path: str, repeat: int, in_process: int) -> dict:
+    """Wall seconds of a controller FMU's laps, as a user meets them: ``lap --controller-fmu`` in a fresh process
+    (median of ``repeat``), and ``in_process`` laps of ``run_controller_lap`` in this one (the first, and the median
+    of the rest)."""
+    cli = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "twin.run", "lap", "--controller-fmu", path, "--seed", "3"],
+                       check=True, capture_output=True, timeout=600)
+        cli.append(time.perf_counter() - t0)
+    laps = []
+    for _ in range(in_process):
+        t0 = time.perf_counter()
+        run_controller_lap(twin, controller, seed=3, keep_trace=False)
+        laps.append(time.perf_counter() - t0)
+    return {"cli_wall_s": statistics.median(cli), "first_lap_wall_s": laps[0],
+            "later_laps_wall_s": statistics.median(laps[1:]) if len(laps) > 1 else None}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--quick", action="store_true", help="one run of each (for CI)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    in_process = 6
+    if args.quick:
+        args.repeat, in_process = 1, 2
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core
     twin = DigitalTwin(track="default")
@@ -78,8 +108,10 @@ def main() -> None:
         closed = export_fmu(twin, os.path.join(work, "closed.fmu"), CLOSED_LOOP, 2)
         export_wall = time.perf_counter() - t0
         plant = export_fmu(twin, os.path.join(work, "plant.fmu"), PLANT, 2)
-        controller = ControllerFmu(build_controller(twin, os.path.join(work, "controller.fmu")), None,
-                                   params.count, params.dt_s)
+        controller_path = build_controller(twin, os.path.join(work, "controller.fmu"))
+        walls = controller_walls(twin, ControllerFmu(controller_path, None, params.count, params.dt_s),
+                                 controller_path, args.repeat, in_process)
+        controller = ControllerFmu(controller_path, None, params.count, params.dt_s)
         closed_dir, plant_dir = extract(closed.path), extract(plant.path)
         closed_md, plant_md = read_model_description(closed_dir), read_model_description(plant_dir)
         c_s, c_lap = best(lambda: run_laps(twin, [{}], nthread=1, keep_traces=False, reuse_calibration=False)[0],
@@ -111,6 +143,7 @@ def main() -> None:
         "plant_cpu_s": plant_s, "plant_real_time_factor": (5.0 + turn_s) / plant_s,
         "controller_fmu_cpu_s": ctl_s, "controller_fmu_real_time_factor": lap_simulated / ctl_s,
         "controller_fmu_vs_lap": ctl_s / c_s,  # the same turn and lap
+        "controller_fmu_walls": walls,
         "fmu_wall_s": WALL["fmu"], "fmu_wall_real_time_factor": simulated / WALL["fmu"], "load_average": os.getloadavg()[0], "fmu_size_bytes": closed.size_bytes,
     }
     if args.json:
@@ -131,6 +164,10 @@ def main() -> None:
           f"{out['plant_real_time_factor']:7.1f}× real time")
     print(f"  controller FMU in the twin's loop      {ctl_s:6.3f} s for {lap_simulated:.2f} s "
           f"{out['controller_fmu_real_time_factor']:7.1f}× real time   ({out['controller_fmu_vs_lap']:.2f}× the lap)")
+    later = walls["later_laps_wall_s"]
+    print(f"controller FMU behind its wall, wall time (seed 3): lap --controller-fmu {walls['cli_wall_s']:.2f} s "
+          f"(median of {args.repeat}); in one process: first lap {walls['first_lap_wall_s']:.2f} s, later laps "
+          + (f"{later:.2f} s (median of {in_process - 1})" if later is not None else "—"))
 
 
 if __name__ == "__main__":

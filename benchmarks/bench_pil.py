@@ -14,7 +14,9 @@ Measured in one run on the default robot and track (shared machines are noisy; c
 Timed in CPU time of the thread (``time.thread_time``) with the garbage collector off, best of --repeat.
 Targets: the PIL lap at least real time on one core (ratio ≥ 1), a 3pi program's at least twice real time.
 
-  python benchmarks/bench_pil.py [--repeat 3] [--program FILE] [--json]
+  python benchmarks/bench_pil.py [--repeat 3] [--program FILE] [--quick] [--json]
+
+``--quick``: one run of each (for CI: the script cannot rot).
 """
 
 from __future__ import annotations
@@ -94,8 +96,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--program", metavar="FILE", help="a 3pi program (ELF or HEX) for the board lap")
+    ap.add_argument("--quick", action="store_true", help="one run of each (for CI)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    if args.quick:
+        args.repeat = 1
     with tempfile.TemporaryDirectory() as folder:
         board = board_lap(args.program or follower(folder), args.repeat)
     twin = DigitalTwin(track="default")

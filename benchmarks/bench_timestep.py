@@ -21,7 +21,11 @@ gains are reported beside the rule, against the same 0.25 ms reference: chaotic 
 every step above it. ``--convergence`` adds the grip-limited case (robust gains, μ 0.6, 6 V) on 20 seeds down to
 0.0625 ms. About 8 min on 2 cores with 5 seeds; 10 seeds and four steps take about 10 min.
 
-  python benchmarks/bench_timestep.py [--seeds 5] [--steps-ms 0.25,0.5,1,1.25,1.6667,2.5] [--convergence] [--json]
+  python benchmarks/bench_timestep.py [--seeds 5] [--steps-ms 0.25,0.5,1,1.25,1.6667,2.5] [--convergence] [--quick]
+                                      [--json]
+
+``--quick``: one seed, steps 0.5 and 1 ms, μ 0.9 and 6 V only, every tuning stopped after one iteration (for CI: the
+script cannot rot; the figures are not the table's).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import argparse
 import json
 import logging
 import os
+import sys
 import tempfile
 import time
 import warnings
@@ -44,13 +49,17 @@ from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.model.motor_setup import catalogue_motor, motor_for_robot, use_motor
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+from reference_gains import tuned_gains  # noqa: E402  (the one home of tuned gains)
+
 STEPS_MS = (0.25, 0.5, 1.0, 1.25, 5 / 3, 2.5)
-GRIP = (0.6, 0.9)
-SUPPLY = (4.8, 6.0)
+GRIP = [0.6, 0.9]  # --quick: 0.9 only
+SUPPLY = [4.8, 6.0]  # --quick: 6.0 only
 LAP_TOLERANCE = 0.001  # relative
 GAINS = ("control.v_max", "control.kb", "control.kp", "control.ki", "control.kd")
-# gains for the default robot, scaled to other robots as the tuner's bounds are (tuner.search.space.robot_bounds)
-ROBUST = (1.008, 0.1857, 18.60, 0.0051, 0.3053)  # `python -m tuner --robust` at 1 ms (commit 2fb264b)
+QUICK_TUNING: list[str] = []  # --quick: every tuning stops after one iteration
+# deliberately arbitrary gains (not tuned: they span well damped to poor) for the default robot, scaled to other
+# robots as the tuner's bounds are (tuner.search.space.robot_bounds)
 MODERATE = (1.0, 0.5, 18.6, 0.0, 0.3)  # well damped, 14–20 mm off the line at most
 SLOPPY = (1.0, 0.5, 10.0, 0.0, 0.05)  # weak steering, little damping: 60–80 mm off the line in the bends
 RECKLESS = (1.2, 1.0, 20.0, 0.0, 0.3)  # fast for its steering: at μ 0.6 on 6 V some seeds circle until the timeout
@@ -106,14 +115,20 @@ def tuned(twin: DigitalTwin) -> dict[str, float]:
     """Plain tuning (the tuner's defaults, seed 0, the twin's own step): gains on the knife edge of one seed."""
     space = SearchSpace(twin.space, (), robot_bounds(twin))
     objective = LapObjective(twin, space, seed=0)
-    descend(objective, space.to_unit(space.start(twin.space)), DescentOptions())
+    options = DescentOptions(max_iter=1) if QUICK_TUNING else DescentOptions()
+    descend(objective, space.to_unit(space.start(twin.space)), options)
     return space.assignments(objective.best.x)
+
+
+def robust_gains() -> dict[str, float]:
+    """``python -m tuner --robust``'s answer for the default robot (at its default step, 1 ms)."""
+    return tuned_gains("--robust", *QUICK_TUNING)
 
 
 def gain_sets(name: str, twin: DigitalTwin) -> dict[str, dict[str, float]]:
     sets = {"default": {a: twin.space.get(a) for a in GAINS}, "tuned": tuned(twin)}
     if name == "default":
-        sets["robust"] = dict(zip(GAINS, ROBUST))
+        sets["robust"] = robust_gains()
     sets["moderate"], sets["sloppy"], sets["reckless"] = (scaled(twin, g) for g in (MODERATE, SLOPPY, RECKLESS))
     return sets
 
@@ -162,14 +177,15 @@ def ruled(row: dict) -> bool:
     return not row["poor"] and not row["chaotic"]
 
 
-def convergence(twin: DigitalTwin, steps_ms, seeds: int = 20) -> list[dict]:
+def convergence(twin: DigitalTwin, robust: dict[str, float], steps_ms, seeds: int = 20) -> list[dict]:
     """The grip-limited lap (robust gains, μ 0.6, 6 V) on ``seeds`` seeds at each step: mean and spread."""
     out = []
     for ms in steps_ms:
-        v = {**dict(zip(GAINS, ROBUST)), "motion.mu": 0.6, "motion.timestep": ms * 1e-3}
+        v = {**robust, "motion.mu": 0.6, "motion.timestep": ms * 1e-3}
         laps = run_laps(twin, [v] * seeds, seed=list(range(seeds)), keep_traces=False)
         t = np.array([r.lap_time_s for r in laps if r.completed])
-        out.append({"step_ms": ms, "completed": len(t), "mean_s": float(t.mean()), "sd_s": float(t.std(ddof=1))})
+        out.append({"step_ms": ms, "seeds": seeds, "completed": len(t), "mean_s": float(t.mean()),
+                    "sd_s": float(t.std(ddof=1))})
     return out
 
 
@@ -229,11 +245,11 @@ def report(out: dict, steps: list[float]) -> None:
     print(f"largest step keeping fidelity (regular laps of raced gains ≤ 0.1 %, no agreed decision changed): "
           f"{out['largest_step_keeping_fidelity_ms']:.4g} ms")
     if out.get("convergence"):
-        print("\ngrip-limited lap (robust gains, μ 0.6, 6 V), 20 seeds: mean lap ± sd")
+        print(f"\ngrip-limited lap (robust gains, μ 0.6, 6 V), {out['convergence'][0]['seeds']} seeds: mean lap ± sd")
         first = out["convergence"][0]["mean_s"]
         for c in out["convergence"]:
             print(f"  {c['step_ms']:7.4g} ms: {c['mean_s']:.4f} ± {c['sd_s']:.4f} s ({(c['mean_s'] / first - 1) * 100:+.2f} %), "
-                  f"{c['completed']}/20 done")
+                  f"{c['completed']}/{c['seeds']} done")
 
 
 def main() -> None:
@@ -242,8 +258,13 @@ def main() -> None:
     ap.add_argument("--steps-ms", default=",".join(f"{s:.6g}" for s in STEPS_MS),
                     help="physics steps [ms], the first is the reference; each must divide the 5 ms control period")
     ap.add_argument("--convergence", action="store_true", help="the grip-limited lap on 20 seeds down to 0.0625 ms")
+    ap.add_argument("--quick", action="store_true",
+                    help="one seed, steps 0.5 and 1 ms, μ 0.9 and 6 V, one tuning iteration (for CI)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
+    if args.quick:
+        args.seeds, args.steps_ms = 1, "0.5,1"
+        GRIP[:], SUPPLY[:], QUICK_TUNING[:] = [0.9], [6.0], ["--max-iter", "1"]
     logging.disable(logging.WARNING)
     warnings.filterwarnings("ignore")
     steps = [5 / 3 if abs(float(s) - 5 / 3) < 1e-3 else float(s) for s in args.steps_ms.split(",")]
@@ -256,7 +277,7 @@ def main() -> None:
             out["robots"][name] = {"rows": rows, "cpu_s_per_lap": {f"{ms:.4g}": c for ms, c in cost.items()},
                                    "gains": gains, "motor_tau_e_ms": 1e3 * motor.L_M / motor.R_M}
             if args.convergence and name == "default":
-                out["convergence"] = convergence(twin, [0.0625, 0.125] + list(steps))
+                out["convergence"] = convergence(twin, gains["robust"], [0.0625, 0.125] + list(steps))
     out.update(verdict_of(out, steps))
     if args.json:
         print(json.dumps(out))

@@ -23,30 +23,25 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
-import tempfile
 
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
-from twin.model.parameter_files import load_values
 from twin.model.timing import COMPUTE_US, RELEASE_US
 from twin.pil.lap import run_pil_lap
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+from reference_gains import tuned_gains  # noqa: E402  (the one home of tuned gains)
 
 TARGET_PERCENT = 0.2
 TRACKS = ("default", "oval", "circle", "chicane")
 
 
-def gains_for(track: str, kind: str, folder: str) -> dict:
+def gains_for(track: str, kind: str) -> dict:
     """The gains tuned on ``track`` (kind plain or robust) as the tuner's CLI finds them, or {} for the defaults."""
     if kind == "default":
         return {}
-    path = os.path.join(folder, f"{track}-{kind}.json")
-    cmd = [sys.executable, "-m", "tuner", "--track", track, "-o", path, "-q", *(["--robust"] if kind == "robust" else [])]
-    out = subprocess.run(cmd, capture_output=True, text=True, check=False)
-    if out.returncode != 0:
-        raise SystemExit(f"error: {' '.join(cmd[1:])} exited {out.returncode}: {out.stderr.strip()[-300:]}")
-    return load_values(path, DigitalTwin(track=track).space, kind="gains")
+    return tuned_gains("--track", track, *(["--robust"] if kind == "robust" else []))
 
 
 def race(track: str, gains: dict, seeds: list[int]) -> dict:
@@ -85,19 +80,18 @@ def main() -> int:
     kinds = ("default", "plain") if args.quick else ("default", "plain", "robust")
     seeds = [0] if args.quick else list(range(args.seeds))
     rows = []
-    with tempfile.TemporaryDirectory() as folder:
-        for track in tracks:
-            for kind in kinds:
-                row = {"track": track, "gains": kind, **race(track, gains_for(track, kind, folder), seeds)}
-                rows.append(row)
-                if not args.json:
-                    mean = row["mean_difference_percent"]
-                    verdict = "laps did not complete" if mean is None else (
-                        f"mean {mean:+.3f} % {'ok' if abs(mean) <= TARGET_PERCENT else 'OVER'}, largest "
-                        f"{row['largest_difference_percent']:+.3f} %, C's own spread {row['c_spread_percent']:.3f} %")
-                    print(f"{track:8s} {kind:8s} C {row['c_lap_s'] or float('nan'):.3f} s  {row['completed']}/"
-                          f"{row['laps']} both completed  {verdict}  (MCU: release {row['mcu_release_mean_us']:.1f} µs, "
-                          f"compute {row['mcu_compute_mean_us']:.0f} µs)", flush=True)
+    for track in tracks:
+        for kind in kinds:
+            row = {"track": track, "gains": kind, **race(track, gains_for(track, kind), seeds)}
+            rows.append(row)
+            if not args.json:
+                mean = row["mean_difference_percent"]
+                verdict = "laps did not complete" if mean is None else (
+                    f"mean {mean:+.3f} % {'ok' if abs(mean) <= TARGET_PERCENT else 'OVER'}, largest "
+                    f"{row['largest_difference_percent']:+.3f} %, C's own spread {row['c_spread_percent']:.3f} %")
+                print(f"{track:8s} {kind:8s} C {row['c_lap_s'] or float('nan'):.3f} s  {row['completed']}/"
+                      f"{row['laps']} both completed  {verdict}  (MCU: release {row['mcu_release_mean_us']:.1f} µs, "
+                      f"compute {row['mcu_compute_mean_us']:.0f} µs)", flush=True)
     means = [abs(r["mean_difference_percent"]) for r in rows if r["mean_difference_percent"] is not None]
     largest = [abs(r["largest_difference_percent"]) for r in rows if r["largest_difference_percent"] is not None]
     summary = {"rows": rows, "seeds": seeds, "target_percent": TARGET_PERCENT,

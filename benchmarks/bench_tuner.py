@@ -15,10 +15,15 @@
     nominal lap's difference (target within 0.5 %), whether the gains are the same; ``--step`` runs the delivered
     side at another step (e.g. 5/3 ms, the largest step ``bench_timestep.py`` allows on 5 seeds; docs/performance.md
     says why the default stays 1 ms)
+  * ``python -m tuner --robust -q --json`` as a user runs it (its own process): its ``wall_s``, ``final_lap_time_s``
+    (the worst lap) and ``held_out.completion_rate``, and the process's wall time
 
   pip install -e '.[bench]'   # cma
   python benchmarks/bench_tuner.py [--cma-evals 600] [--no-cma] [--robust-only] [--before-steps 0.00025,0.001]
-                                   [--step S] [--json]
+                                   [--step S] [--quick] [--json]
+
+``--quick``: every search stops after one iteration (CMA-ES after 24 laps), one baseline at 1 ms, 2 held-out seeds
+(``tune``'s too) (for CI: the script cannot rot; the figures are not the table's).
 """
 
 from __future__ import annotations
@@ -26,6 +31,8 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import subprocess
+import sys
 import time
 import warnings
 
@@ -41,6 +48,7 @@ from twin.errors import TwinError
 from twin.model.partial_models import default_space
 
 HELD_OUT = 20
+OPTIONS = DescentOptions()  # --quick: one iteration
 
 
 def tune(method, twin: DigitalTwin, envelope: Envelope | None = None, risk: Risk = Risk("mean"),
@@ -48,7 +56,7 @@ def tune(method, twin: DigitalTwin, envelope: Envelope | None = None, risk: Risk
     space = SearchSpace(twin.space)
     objective = LapObjective(twin, space, seed=0, envelope=envelope, risk=risk, stop_early=stop_early)
     t0, c0 = time.perf_counter(), time.process_time()
-    r = method(objective, space.to_unit(space.start(twin.space)), DescentOptions())
+    r = method(objective, space.to_unit(space.start(twin.space)), OPTIONS)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     return {"lap_time_s": objective.best.lap.lap_time_s, "cost_s": objective.best.cost, "laps": objective.laps,
             "iterations": len(r.iterations), "wall_s": wall, "cpu_s": cpu, "converged": r.converged,
@@ -149,6 +157,20 @@ def plain(twin: DigitalTwin, envelope: Envelope, args, robust: dict) -> dict:
     }
 
 
+def robust_cli(quick: bool) -> dict:
+    """``python -m tuner --robust -q --json`` in its own process: the fields a user reads, and the process's wall."""
+    cmd = [sys.executable, "-m", "tuner", "--robust", "-q", "--json",
+           *(["--max-iter", "1", "--held-out", "2"] if quick else [])]
+    t0 = time.perf_counter()
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
+    wall = time.perf_counter() - t0
+    if run.returncode != 0:
+        raise SystemExit(f"error: {' '.join(cmd[1:])} exited {run.returncode}: {run.stderr.strip()[-300:]}")
+    doc = json.loads(run.stdout)
+    return {"wall_s": doc["wall_s"], "final_lap_time_s": doc["final_lap_time_s"],
+            "held_out_completion_rate": doc["held_out"]["completion_rate"], "process_wall_s": wall}
+
+
 def print_robust(out: dict, envelope: Envelope) -> None:
     robust = out["robust"]
     print(f"robust preset ({len(envelope.scenarios)} scenarios × {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap), "
@@ -186,8 +208,14 @@ def main() -> None:
                          "baseline and the default step when it was filed)")
     ap.add_argument("--step", type=one_step, default=None,
                     help="physics step [s] of the delivered side (default: the twin's default)")
+    ap.add_argument("--quick", action="store_true",
+                    help="one iteration per search, CMA-ES 24 laps, one baseline at 1 ms, 2 held-out seeds (for CI)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
+    if args.quick:
+        global HELD_OUT, OPTIONS
+        HELD_OUT, OPTIONS = 2, DescentOptions(max_iter=1)
+        args.cma_evals, args.before_steps = 24, [0.001]
     logging.disable(logging.WARNING)
     warnings.filterwarnings("ignore")
     twin = at_step(args.step)
@@ -202,6 +230,7 @@ def main() -> None:
     out = {"robust": robust, "robust_before": baselines}
     if not args.robust_only:
         out.update(plain(twin if args.step is None else at_step(None), envelope, args, robust))
+        out["robust_cli"] = robust_cli(args.quick)
     if args.json:
         print(json.dumps(out))
         return
@@ -227,6 +256,9 @@ def main() -> None:
         print(f"    {corner}: robust {rh['by_corner'][corner]}/{HELD_OUT}, plain {ph['by_corner'][corner]}/{HELD_OUT}")
     print(f"  price of robustness, nominal lap: {rh['nominal_lap_time_s']:.3f} s against the plain gains' "
           f"{ph['nominal_lap_time_s']:.3f} s ({(out['robust_over_plain_nominal_lap'] - 1) * 100:+.1f} %)")
+    c = out["robust_cli"]
+    print(f"python -m tuner --robust -q --json: wall_s {c['wall_s']:.1f} s (the process {c['process_wall_s']:.1f} s), "
+          f"final_lap_time_s {c['final_lap_time_s']:.3f} s, held_out.completion_rate {c['held_out_completion_rate']:g}")
 
 
 if __name__ == "__main__":

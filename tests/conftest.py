@@ -1,7 +1,7 @@
 """Shared fixtures: a cache folder per test session, the root logger restored after each test, a third-party-style
 URDF package, the processor in the loop's tools (``pil_ready``), and the gains ``tune`` answers today
-(``plain_gains``, ``robust_gains``: tuned once a session, so tests that need tuned gains never hold a copy that the
-tuner has moved away from)."""
+(``plain_gains``, ``robust_gains``: tuned once a session by tests/reference_gains.py, which the benchmarks call too, so
+tests that need tuned gains never hold a copy that the tuner has moved away from)."""
 
 from __future__ import annotations
 
@@ -36,27 +36,20 @@ def pil_ready():
         pytest.skip(str(e))
 
 
-def _tuned(folder, *flags: str) -> dict:
-    """The gains ``python -m tuner`` writes for the default robot and track with ``flags``."""
-    import json
+@pytest.fixture(scope="session")
+def plain_gains() -> dict:
+    """``tune``'s answer (a few seconds; tests/reference_gains.py, shared with the benchmarks)."""
+    from reference_gains import tuned_gains
 
-    from twin.cli.main import main
-
-    path = folder / "gains.json"
-    assert main(["tune", "-q", "-o", str(path), *flags]) == 0
-    return json.loads(path.read_text())["gains"]
+    return tuned_gains()
 
 
 @pytest.fixture(scope="session")
-def plain_gains(tmp_path_factory) -> dict:
-    """``tune``'s answer (a few seconds)."""
-    return _tuned(tmp_path_factory.mktemp("plain"))
-
-
-@pytest.fixture(scope="session")
-def robust_gains(tmp_path_factory) -> dict:
+def robust_gains() -> dict:
     """``tune --robust``'s answer (about 30 s of CPU)."""
-    return _tuned(tmp_path_factory.mktemp("robust"), "--robust")
+    from reference_gains import tuned_gains
+
+    return tuned_gains("--robust")
 
 
 @pytest.fixture(autouse=True)

@@ -11,22 +11,23 @@ from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.run import main
 
-FAST = {"control.v_max": 1.5, "control.kb": 0.1247, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
 
 
 @pytest.fixture(scope="module")
-def fast_twin():
+def fast_twin(plain_gains):
     t = DigitalTwin()
-    t.update(FAST)  # tuned gains: the robot runs at the grip limit, so μ shows in the lap time
+    t.update(plain_gains)  # tuned gains: the robot runs at the grip limit, so μ shows in the lap time
     return t
 
 
 @pytest.mark.quick
 def test_hidden_mu_is_recovered_from_the_lap_time(fast_twin):
-    measured = run_laps(fast_twin, [{"motion.mu": 0.9}], seed=0)[0].lap_time_s
+    # hidden μ 0.8, below the twin's own 0.9: nearer the grip where tune's gains begin to fail (about 0.7), so μ
+    # moves the lap well above what the noise seeds do
+    measured = run_laps(fast_twin, [{"motion.mu": 0.8}], seed=0)[0].lap_time_s
     r = align_lap_time(fast_twin, measured)
     assert r.explained and r.identifiable
-    assert r.value == pytest.approx(0.9, rel=0.05)
+    assert r.value == pytest.approx(0.8, rel=0.05)
     assert abs(r.simulated_lap_time_s - measured) <= 0.005 * measured
     assert r.consistent[0] <= r.value <= r.consistent[1]
     assert fast_twin.space.get("motion.mu") == 0.9  # the twin's own value is untouched by the search
@@ -79,9 +80,9 @@ def test_flat_lap_time_is_not_identifiable(fast_twin):
     assert r.explained and not r.identifiable and "not identifiable" in r.message
 
 
-def test_cli_align_json_and_recording(tmp_path, capsys):
+def test_cli_align_json_and_recording(tmp_path, capsys, plain_gains):
     gains = tmp_path / "fast.json"
-    gains.write_text(json.dumps(FAST))
+    gains.write_text(json.dumps(plain_gains))
     rrd = tmp_path / "align.rrd"
     assert main(["align", "--measured-lap-time", "7.02", "--gains", str(gains), "--json", "--save", str(rrd)]) == 0
     out = json.loads(capsys.readouterr().out)

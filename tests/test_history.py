@@ -20,8 +20,10 @@ from twin.cli.main import main
 from twin.core.digital_twin import DigitalTwin
 from twin.telemetry.wire import Boot, Event, Header, Reply, Sample, encode
 
+# held fixed on purpose, not the tuner's answer today (the plain_gains fixture): test_act's gains, which the twin
+# fails below μ ≈ 0.75, the premise of the forecast test's hand calculation; elsewhere only values in records
 PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
-NEW = {"control.v_max": 1.1, "control.kb": 0.2, "control.kp": 31.0, "control.ki": 0.0, "control.kd": 1.12}
+NEW = {"control.v_max": 1.1, "control.kb": 0.2, "control.kp": 31.0, "control.ki": 0.0, "control.kd": 1.12}  # arbitrary: a second set for the records
 
 
 def sqlite(tmp_path, name="h.sqlite") -> str:

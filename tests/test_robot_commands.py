@@ -19,7 +19,7 @@ pytestmark = pytest.mark.quick
 
 FLASHED = {"control.v_max": 0.6, "control.kb": 0.5, "control.kp": 15.0, "control.ki": 0.0, "control.kd": 0.3}
 LIMITS = {a: (0.0, 100.0) for a in FLASHED}
-NEW = {"control.v_max": 1.1, "control.kb": 0.2, "control.kp": 31.0, "control.ki": 0.0, "control.kd": 1.12}
+NEW = {"control.v_max": 1.1, "control.kb": 0.2, "control.kp": 31.0, "control.ki": 0.0, "control.kd": 1.12}  # arbitrary, for the wire
 
 
 def robot(**kw) -> RobotEnd:

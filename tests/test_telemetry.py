@@ -13,6 +13,7 @@ from twin.run import main
 from twin.telemetry.jsonl import lap_lines, read_telemetry, write_telemetry
 from tuner.align.trace import align_telemetry
 
+# deliberately arbitrary, not tuned: moderate gains that lap the oval well inside its limits (as bench_case_studies)
 GAINS = {"control.v_max": 1.0, "control.kb": 0.3, "control.kp": 25.0, "control.kd": 0.5}
 
 
