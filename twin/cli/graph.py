@@ -23,7 +23,8 @@ def add_parser(sub) -> None:
     p = sub.add_parser("graph", help=HELP, description=HELP + " (paper §2, §3.8). With --learn: global sensitivity "
                        "from batches of laps (SALib): Morris screening over every parameter a batch can vary, each over "
                        "its documented physical range, then Sobol' indices for those that matter, for the lap time, "
-                       "completion, energy and cross-track error; the learned graph against the declared one (table, "
+                       "completion, energy and cross-track error (where laps fail: completion on its own, the others "
+                       "over the completed laps with Borgonovo's δ; nothing is written in for a failed lap); the learned graph against the declared one (table, "
                        f"{OUT_DIR}/learned_graph.png, indices.png, influences.csv, learned_graph.json). A default "
                        "analysis is kept for this twin, where diagnose and align find it. It runs "
                        f"{SENSITIVITY_TRAJECTORIES} (k + 1) + N (k' + 2) laps for k parameters of which k' ≤ "
@@ -67,6 +68,7 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
 
         from tuner.sensitivity import (check_samples, chosen_factors, compare, document, learn, store, table,
                                        write_folder)
+        from tuner.sensitivity.analysis import TOO_FEW
         from tuner.sensitivity.laps import SAMPLES
         from twin.viz import recording
 
@@ -110,16 +112,29 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
     for line in table(twin.space, analysis, relations):
         out.say(line)
     for line in analysis.notes:
-        out.say(f"note: {line}")
+        if not line.startswith(TOO_FEW):  # those close the output, as warnings
+            out.say(f"note: {line}")
     for o_name in analysis.outputs:
-        top = sorted((i for i in analysis.influences if i.output == o_name and i.total is not None),
-                     key=lambda i: -i.total)[:3]
-        if top:
-            out.say(f"{o_name} is governed by " + ", ".join(
-                f"{i.parameter} (ST {i.total:.2f} [{i.total_interval[0]:.2f}, {i.total_interval[1]:.2f}])" for i in top))
+        out.say(governors(analysis, o_name))
     x = analysis.extra
     out.say(f"{x['laps']} laps ({analysis.morris_runs} Morris, {analysis.sobol_runs} Sobol'), "
             f"{100 * x['completion_rate']:.1f} % completed, in {x['wall_s']:.0f} s ({x['cpu_s']:.0f} s CPU); "
             f"wrote {files['folder']}" + (f" and {files['recording']}" if files["recording"] else ""))
-    out.say(f"learned influences {why}" + (f": {stored}" if stored else ""))
+    out.say(f"learned influences: {why}" + (f" ({stored})" if stored else ""))
+    for line in analysis.notes:
+        if line.startswith(TOO_FEW):
+            out.warn(line)
     return 0
+
+
+def governors(analysis, output: str) -> str:
+    """What measurably governs one output (:attr:`Influence.measured`), the largest index first; or why nothing is
+    named."""
+    measured = sorted((i for i in analysis.influences if i.output == output and i.measured), key=lambda i: -i.index)
+    if measured:
+        return f"{output} is governed by " + ", ".join(
+            f"{i.parameter} ({i.index_name} {i.index:.2f} [{i.index_interval[0]:.2f}, {i.index_interval[1]:.2f}])"
+            for i in measured[:3])
+    indexed = any(i.output == output and i.index is not None for i in analysis.influences)
+    return (f"{output}: no parameter measurably governs it" +
+            (" (every index below 0.05 or its interval reaching its floor)" if indexed else " (no indices measured)"))
