@@ -195,20 +195,28 @@ def pareto(results: Sequence[DesignResult]) -> list[bool]:
 
 
 def trend(results: Sequence[DesignResult], address: str) -> str:
-    """A plain statement of how the median converged lap time moves with one parameter (others averaged)."""
+    """A plain statement of how the median lap time moves with one parameter (others averaged), over the designs
+    whose gains converged only: a design stopped at its iteration cap shows where its search was, not what the
+    design can do, so a trend through it would compare searches, not designs."""
     by: dict = {}
+    stopped = 0
     for r in results:
         if r.ok and r.lap_times_s:
+            if not r.converged:
+                stopped += 1
+                continue
             by.setdefault(r.design[address], []).append(r.median_s)
+    left = (f"; {stopped} design{'s' if stopped > 1 else ''} left out: gains not converged (raise --max-iter)"
+            if stopped else "")
     if len(by) < 2:
-        return f"{address}: not enough completed designs to tell"
+        return f"{address}: not enough designs with converged gains to tell" + (f" ({left[2:]})" if stopped else "")
     if any(isinstance(x, str) for x in by):  # categorical: no order to speak of, fastest first
         ranked = sorted(by, key=lambda x: float(np.mean(by[x])))
         values = ", ".join(f"{x} → {float(np.mean(by[x])):.3f} s" for x in ranked)
-        return f"{address}, fastest first: {values} (mean of medians over the other parameters)"
+        return f"{address}, fastest first: {values} (mean of medians over the other parameters{left})"
     xs = sorted(by)
     means = [float(np.mean(by[x])) for x in xs]
     steps = np.sign(np.diff(means))
     shape = ("lowers" if np.all(steps < 0) else "raises" if np.all(steps > 0) else "does not move monotonically")
     values = ", ".join(f"{x:g} → {m:.3f} s" for x, m in zip(xs, means))
-    return f"larger {address} {shape} the converged lap time ({values}; mean of medians over the other parameters)"
+    return f"larger {address} {shape} the converged lap time ({values}; mean of medians over the other parameters{left})"

@@ -196,6 +196,8 @@ def run(args: argparse.Namespace) -> int:
     if best is None:
         raise TunerError("interrupted before the first lap finished: nothing to report")
     values = space.assignments(best.x)
+    hit = [{"address": a, "side": side, "bound": b, "unit": twin.space.parameter(a).unit}
+           for a, side, b in space.bounds_hit(best.x)]
     final = best.lap
     held = held_out(twin, values, envelope, args.held_out, args.workers)
     summary = {
@@ -206,6 +208,7 @@ def run(args: argparse.Namespace) -> int:
         "track": twin.track.name, "out": None, "recording": None, "risk": str(risk),
         "envelope": {"scenarios": [label(sc) for sc in envelope.scenarios], "seeds": list(envelope.seeds)},
         "final_scenarios": objective.by_scenario(best), "per_iteration": per_iteration, "held_out": held,
+        "bounds_hit": hit,
         "loads_with": "--gains" if all(a.startswith("control.") for a in values) else "--params",
     }
     if all(a.startswith("control.") for a in values):
@@ -226,13 +229,22 @@ def run(args: argparse.Namespace) -> int:
     out.say(f"{args.method}: lap {objective.first.cost:.3f} s → {t_final} in {len(iterations)} iterations, "
             f"{objective.laps} laps, {wall:.1f} s ({reason})")
     out.say("values: " + ", ".join(f"{a}={v:.4g}" for a, v in values.items()))
+    for h in hit:
+        unit = "" if h["unit"] == "-" else f" {h['unit']}"
+        out.say(f"bound hit: {h['address']} ended on its {h['side']} bound ({h['bound']:g}{unit}): the best may lie "
+                f"beyond it (widen it with --bounds {h['address']}=LO,HI)")
     if len(envelope) > 1:
         out.say(f"envelope: {len(envelope.scenarios)} scenarios × {len(envelope.seeds)} seeds, {risk} lap cost {best.cost:.3f} s")
         for row in summary["final_scenarios"]:
             t = row["lap_times_s"]
             out.say(f"  {row['scenario']}: {row['completed']}/{row['laps']} laps completed"
                     + (f", {min(t):.3f}–{max(t):.3f} s" if t else ""))
-    if held:
+    if held and not envelope.axes:  # no envelope: the twin as it is, on new seeds
+        row = held["corners"][0]
+        med = f", median {row['median_lap_time_s']:.3f} s" if row["median_lap_time_s"] else ""
+        out.say(f"held-out seeds {held['seeds'][0]}–{held['seeds'][1]}: {row['completed']}/{row['laps']} laps "
+                f"completed{med}")
+    elif held:
         out.say(f"held-out seeds {held['seeds'][0]}–{held['seeds'][1]}: {held['completion_rate'] * 100:.0f} % of laps "
                 "completed over the envelope's corners")
         for row in held["corners"]:
