@@ -127,14 +127,14 @@ def test_morris_over_the_steps_with_a_value_is_salibs_when_every_run_has_one():
     missing): the same μ* and σ."""
     from SALib.analyze import morris as morris_analyze
     from SALib.sample import morris as morris_sample
-    from tuner.sensitivity.analysis import _problem, _screen_censored
+    from tuner.sensitivity.analysis import problem_of, screen_censored
 
     factors = [Factor(n, -math.pi, math.pi, "-", "test", True) for n in ("x1", "x2", "x3", "x4")]
-    problem = _problem(factors)
+    problem = problem_of(factors)
     X = morris_sample.sample(problem, N=10, num_levels=4, seed=5)
     y = ishigami([f.address for f in factors], X)["y"]
     ref = morris_analyze.analyze(problem, X, y, num_levels=4, seed=5)
-    mine = _screen_censored(factors, X, y, 0, "y", [])
+    mine = screen_censored(factors, X, y, 0, "y", [])
     for i, f in enumerate(factors):
         mu, _, sigma = mine[(f.address, "y")]
         assert mu == pytest.approx(ref["mu_star"][i], abs=1e-12) and sigma == pytest.approx(ref["sigma"][i], abs=1e-12)
@@ -146,11 +146,11 @@ def test_a_small_sample_is_flagged_with_what_it_would_need_and_indices_stay_in_0
     that narrows the widest interval to ±0.1 (half-widths shrink as 1/√N)."""
     from SALib.analyze import sobol as sobol_analyze
     from SALib.sample import sobol as sobol_sample
-    from tuner.sensitivity.analysis import TOO_FEW, _problem, stage_seed
+    from tuner.sensitivity.analysis import TOO_FEW, problem_of, stage_seed
 
     factors = [Factor(n, -math.pi, math.pi, "-", "test", True) for n in ("x1", "x2", "x3")]
     a = analyse(factors, ishigami, ["y"], samples=8, trajectories=4, seed=0)
-    problem = _problem(sorted((f for f in factors if f.address in a.selected), key=lambda f: a.selected.index(f.address)))
+    problem = problem_of(sorted((f for f in factors if f.address in a.selected), key=lambda f: a.selected.index(f.address)))
     # the same Sobol' stage straight from SALib: its raw estimates
     X = sobol_sample.sample(problem, 8, calc_second_order=False, scramble=True, seed=stage_seed(0, 3))
     raw = sobol_analyze.analyze(problem, ishigami(problem["names"], X)["y"], calc_second_order=False,

@@ -160,7 +160,8 @@ def stage_seed(seed: int, stage: int) -> int:
     return int(np.random.SeedSequence(int(seed), spawn_key=(stage,)).generate_state(1)[0]) + 1
 
 
-def _problem(factors: Sequence[Factor]) -> dict:
+def problem_of(factors: Sequence[Factor]) -> dict:
+    """SALib's problem: the factors' names and bounds."""
     return {"num_vars": len(factors), "names": [f.address for f in factors],
             "bounds": [[f.lower, f.upper] for f in factors]}
 
@@ -240,7 +241,7 @@ def _elementary_effects(X: np.ndarray, y: np.ndarray, k: int) -> list[np.ndarray
     return [np.array(e) for e in effects]
 
 
-def _screen_censored(factors: Sequence[Factor], X: np.ndarray, y: np.ndarray, seed: int, o: str,
+def screen_censored(factors: Sequence[Factor], X: np.ndarray, y: np.ndarray, seed: int, o: str,
                      notes: list[str]) -> dict:
     """Morris on an output some runs gave no value for: μ*, its bootstrap interval and σ over the elementary
     effects that have both runs (NaN where none has)."""
@@ -269,7 +270,7 @@ def screen(factors: Sequence[Factor], model: Model, outputs: Sequence[str], traj
     from SALib.analyze import morris as morris_analyze
     from SALib.sample import morris as morris_sample
 
-    problem = _problem(factors)
+    problem = problem_of(factors)
     X = morris_sample.sample(problem, N=trajectories, num_levels=LEVELS, seed=stage_seed(seed, 1))
     Y = _run(model, problem, X, outputs, "Morris screening", on_stage)
     result, notes = {}, []
@@ -280,7 +281,7 @@ def screen(factors: Sequence[Factor], model: Model, outputs: Sequence[str], traj
                 result[(f.address, o)] = (0.0, (0.0, 0.0), 0.0)
             continue
         if _censored(Y[o]):
-            result.update(_screen_censored(factors, X, Y[o], seed, o, notes))
+            result.update(screen_censored(factors, X, Y[o], seed, o, notes))
             continue
         m = morris_analyze.analyze(problem, X, Y[o], num_resamples=RESAMPLES, conf_level=CONFIDENCE,
                                    num_levels=LEVELS, seed=stage_seed(seed, 2))
@@ -339,7 +340,7 @@ def sobol_indices(factors: Sequence[Factor], model: Model, outputs: Sequence[str
     from SALib.analyze import sobol as sobol_analyze
     from SALib.sample import sobol as sobol_sample
 
-    problem = _problem(factors)
+    problem = problem_of(factors)
     X = sobol_sample.sample(problem, samples, calc_second_order=False, scramble=True, seed=stage_seed(seed, 3))
     Y = _run(model, problem, X, outputs, "Sobol' indices", on_stage)
     result, notes = {}, []

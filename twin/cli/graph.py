@@ -9,6 +9,7 @@ import sys
 from lf_common.errors import LineFollowerError
 from lf_common.files import check_output_dir
 from twin.cli import options as o
+from twin.cli import progress
 from twin.cli import twin_options as tw
 from twin.cli.library_values import SENSITIVITY_MAX_SOBOL, SENSITIVITY_SAMPLES, SENSITIVITY_TRAJECTORIES
 from twin.cli.output import Output
@@ -64,8 +65,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _learn(args: argparse.Namespace, out: Output) -> int:
     with loading():
-        from tqdm import tqdm
-
         from tuner.sensitivity import (check_samples, chosen_factors, compare, document, learn, store, table,
                                        write_folder)
         from tuner.sensitivity.analysis import TOO_FEW
@@ -81,18 +80,17 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
     twin = tw.twin_from_args(args)
     warning = tw.gains_warning(args, twin)
     factors = chosen_factors(twin.space, args.param, o.parse_bounds(args.bounds, args.param)) if args.param else None
-    bar = tqdm(total=0, desc="laps", unit="lap", file=sys.stderr, disable=args.quiet or None)
+    bar = progress.bar(args, 0, "laps", "lap")
 
     def on_stage(name: str, runs: int) -> None:
-        bar.total += runs
         bar.set_description(name)
-        bar.refresh()
+        progress.planned_steps(bar, runs)
 
     try:
         analysis = learn(twin, factors, samples=samples, seed=args.seed, nthread=args.workers, on_stage=on_stage,
                          on_laps=bar.update)
     finally:
-        bar.close()
+        progress.finish(bar)
     relations = compare(twin.space, analysis)
     title = f"learned graph: {twin.track.name} track, {analysis.extra['laps']} laps, seed {args.seed}"
     files = write_folder(out_dir, twin.space, analysis, relations, title)
