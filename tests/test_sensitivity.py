@@ -385,3 +385,23 @@ def test_bad_learning_input_is_one_line_and_exit_2(args, match, tmp_path, capsys
     assert main(["graph", *args, *(["--out-dir", str(tmp_path / "o")] if "--learn" in args else [])]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and match in err, err
+
+
+def selected(names, X):
+    """y = x1 + x2 where the run completes, which it does when x2 ≥ x3 (a "grip" x3 that moves no completing run
+    but removes the runs with a small x2 when it is high): x3's δ over the completing runs is the selection's."""
+    full = {n: np.full(len(X), 0.5) for n in ("x1", "x2", "x3")}
+    for i, n in enumerate(names):
+        full[n] = X[:, i]
+    ok = full["x2"] >= full["x3"]
+    return {"y": np.where(ok, full["x1"] + full["x2"], np.nan), "completed": ok.astype(float)}
+
+
+def test_a_factor_that_only_selects_which_runs_complete_is_said_to():
+    factors = [Factor(n, 0.0, 1.0, "-", "test", True) for n in ("x1", "x2", "x3")]
+    a = analyse(factors, selected, ["y", "completed"], samples=256, trajectories=20, seed=0)
+    x3 = a.influence("x3", "y")
+    assert x3.mu_star == 0.0  # a completing run's y does not read x3
+    assert x3.method == "delta" and x3.measured, x3  # yet, over the completing runs, it tells y (selection)
+    assert any(n.startswith("y: x3 (δ") and "which laps complete" in n for n in a.notes), a.notes
+    assert not any("x1 (δ" in n or "x2 (δ" in n for n in a.notes)  # they move a completing run

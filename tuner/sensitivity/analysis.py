@@ -57,6 +57,7 @@ DELTA_RESAMPLES = 200  # bootstrap resamples of δ (each one a kernel density es
 PRECISION = 0.1  # an index's interval half-width beyond which the sample is flagged as too small
 DUMMY = "dummy (reads nothing)"
 TOO_FEW = "too few samples"
+SELECTION_SHARE = 0.01  # a δ whose factor's μ* is under this share of the largest: it acts through what completes
 
 Model = Callable[[Sequence[str], np.ndarray], Mapping[str, np.ndarray]]  # (names, X (n, k)) → {output: (n,)}
 
@@ -382,6 +383,22 @@ def sobol_indices(factors: Sequence[Factor], model: Model, outputs: Sequence[str
     return result, Y, notes
 
 
+def selection_notes(influences: Sequence[Influence], outputs: Sequence[str]) -> list[str]:
+    """A δ measured over the runs with a value, for a factor whose direct effect (Morris μ*, from steps whose two
+    runs both gave one) is under :data:`SELECTION_SHARE` of the largest on that output: it tells the output mostly
+    through which runs give a value (at low grip only the slower settings complete), not by moving a run."""
+    out = []
+    for o in outputs:
+        rows = [i for i in influences if i.output == o]
+        top = max((i.mu_star for i in rows if not math.isnan(i.mu_star)), default=0.0)
+        chosen = [i for i in rows if i.method == "delta" and i.measured and not i.mu_star >= SELECTION_SHARE * top]
+        if chosen:
+            out.append(f"{o}: {', '.join(f'{i.parameter} (δ {i.delta:.2f}, μ* {i.mu_star:.3g})' for i in chosen)}: "
+                       f"measured over the runs that gave a value, yet moving a run by under {SELECTION_SHARE:.0%} of the "
+                       "most (μ*): it acts through which runs give one (which laps complete), not on a run")
+    return out
+
+
 def analyse(factors: Sequence[Factor], model: Model, outputs: Sequence[str], samples: int = 256,
             trajectories: int = 12, seed: int = 0, max_sobol: int = 8,
             on_stage: Callable[[str, int], None] | None = None) -> Analysis:
@@ -430,6 +447,7 @@ def analyse(factors: Sequence[Factor], model: Model, outputs: Sequence[str], sam
                                             got["floor"]))
             else:
                 influences.append(Influence(f.address, o, "morris", None, None, None, None, mu, mu_ci, sigma))
+    notes += selection_notes(influences, outputs)
     summary = {}
     for o in outputs:
         y = np.concatenate([y_morris[o], y_sobol[o]])

@@ -29,7 +29,7 @@ def add_parser(sub) -> None:
                        f"{OUT_DIR}/learned_graph.png, indices.png, influences.csv, learned_graph.json). A default "
                        "analysis is kept for this twin, where diagnose and align find it. It runs "
                        f"{SENSITIVITY_TRAJECTORIES} (k + 1) + N (k' + 2) laps for k parameters of which k' ≤ "
-                       f"{SENSITIVITY_MAX_SOBOL} matter (the default robot: at most 2764 laps, a few minutes on 2 cores).")
+                       f"{SENSITIVITY_MAX_SOBOL} matter (the default robot: at most 2788 laps, a few minutes on 2 cores).")
     o.add_world(p)
     o.add_values(p)
     p.add_argument("--learn", action="store_true", help="measure the relations from laps (global sensitivity)")
