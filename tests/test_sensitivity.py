@@ -146,7 +146,8 @@ def test_a_small_sample_is_flagged_with_what_it_would_need_and_indices_stay_in_0
     that narrows the widest interval to ±0.1 (half-widths shrink as 1/√N)."""
     from SALib.analyze import sobol as sobol_analyze
     from SALib.sample import sobol as sobol_sample
-    from tuner.sensitivity.analysis import TOO_FEW, problem_of, stage_seed
+    from tuner.sensitivity.analysis import problem_of, stage_seed
+    from tuner.sensitivity.precision import TOO_FEW
 
     factors = [Factor(n, -math.pi, math.pi, "-", "test", True) for n in ("x1", "x2", "x3")]
     a = analyse(factors, ishigami, ["y"], samples=8, trajectories=4, seed=0)

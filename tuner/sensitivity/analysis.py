@@ -26,10 +26,10 @@ design. A dummy column, random and read by nothing, is analysed with them: its �
 δ is measured only when its interval lies above it. Fewer than :data:`MIN_GIVEN` runs with a value: no δ (a note says
 how many more samples it needs).
 
-**Precision.** Every index is a fraction of a variance (or of a distribution's shift), in [0, 1]; an estimate outside
-it is sampling error, so it is clipped to [0, 1] and a note gives the raw value. When an interval's half-width exceeds
-:data:`PRECISION` the sample is too small for the indices to mean much: a note starting with ``too few samples`` says
-so and what sample would narrow it to that (half-widths shrink as 1/√N).
+**Precision** (:mod:`tuner.sensitivity.precision`). Every index is a fraction of a variance (or of a distribution's
+shift), in [0, 1]; an estimate outside it is sampling error, so it is clipped to [0, 1] and a note gives the raw
+value. When an interval's half-width exceeds ±0.1 the sample is too small for the indices to mean much: a note
+starting with ``too few samples`` says so and what sample would narrow it to that (half-widths shrink as 1/√N).
 
 An output that does not vary within a stage (every lap completed) gets no indices from that stage: ``notes`` says
 so. Every random choice (sampling, bootstrap) is seeded from ``seed``: the same seed gives bit-identical indices.
@@ -45,6 +45,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from tuner.search.space import TunerError
+from tuner.sensitivity.precision import TOO_FEW, clipped, flag_precision
 from tuner.sensitivity.ranges import Factor
 
 LEVELS = 4  # Morris grid levels (the classic choice with Δ = 2/3 of the range)
@@ -54,9 +55,7 @@ CONFIDENCE = 0.95
 MIN_TOTAL = 0.05  # a relation is measured when ST (or δ) ≥ this and its interval lies above 0 (δ: above the dummy's)
 MIN_GIVEN = 100  # runs with a value the given-data δ needs at least (SALib's 10 bins of at least 10)
 DELTA_RESAMPLES = 200  # bootstrap resamples of δ (each one a kernel density estimate per bin)
-PRECISION = 0.1  # an index's interval half-width beyond which the sample is flagged as too small
 DUMMY = "dummy (reads nothing)"
-TOO_FEW = "too few samples"
 SELECTION_SHARE = 0.01  # a δ whose factor's μ* is under this share of the largest: it acts through what completes
 
 Model = Callable[[Sequence[str], np.ndarray], Mapping[str, np.ndarray]]  # (names, X (n, k)) → {output: (n,)}
@@ -203,30 +202,6 @@ def _why_constant(o: str, y: np.ndarray, stage: str) -> str:
     return f"{o}: the same in every run of the {stage} stage that gave one ({finite[0]:.6g}): no indices from it"
 
 
-def _clipped(o: str, name: str, values: dict[str, tuple[float, tuple[float, float]]], notes: list[str]) -> dict:
-    """Each index and its interval clipped to [0, 1] (an estimate outside is sampling error); a note per output
-    naming the raw values that were outside."""
-    out, outside = {}, []
-    for f, (v, (lo, hi)) in values.items():
-        if math.isnan(v):  # not estimable from these runs: nothing to clip
-            out[f] = (v, (lo, hi))
-            continue
-        if not (0.0 <= v <= 1.0 and 0.0 <= lo and hi <= 1.0):
-            outside.append(f"{f} {v:.2f} [{lo:.2f}, {hi:.2f}]")
-        out[f] = (min(max(v, 0.0), 1.0), (min(max(lo, 0.0), 1.0), min(max(hi, 0.0), 1.0)))
-    if outside:
-        notes.append(f"{o}: {name} estimated outside [0, 1], shown clipped to it (an index is a share, so the excess "
-                     f"is sampling error): {'; '.join(outside)}")
-    return out
-
-
-def needed(current: int, half_width: float, power_of_two: bool = True) -> int:
-    """The sample that narrows a 95 % half-width of ``half_width`` at ``current`` to :data:`PRECISION` (half-widths
-    shrink as 1/√N); the next power of two when the sample must be one."""
-    n = math.ceil(current * (half_width / PRECISION) ** 2)
-    return 2 ** math.ceil(math.log2(n)) if power_of_two else n
-
-
 def _elementary_effects(X: np.ndarray, y: np.ndarray, k: int) -> list[np.ndarray]:
     """Per factor, Morris' elementary effects (output unit per full range of the factor, as SALib's) of the steps
     whose two runs both have a value; X holds whole trajectories of k + 1 rows, each step changing one factor by
@@ -306,13 +281,6 @@ def select(factors: Sequence[Factor], screened: Mapping, outputs: Sequence[str],
     return keep[:max_sobol]
 
 
-def _flag_precision(o: str, name: str, half: float, current: int, unit: str, notes: list[str],
-                    power_of_two: bool = True) -> None:
-    if half > PRECISION:
-        notes.append(f"{TOO_FEW}: {o}'s {name} intervals are up to ±{half:.2f} wide at {current} {unit}; ±{PRECISION:g} "
-                     f"needs about {needed(current, half, power_of_two):,} {unit}")
-
-
 def _given_data(problem: dict, X: np.ndarray, y: np.ndarray, seed: int) -> dict:
     """SALib's ``delta`` (Borgonovo's δ, given-data S1) over the rows with a value, a dummy column appended last."""
     from SALib.analyze import delta as delta_analyze
@@ -360,26 +328,26 @@ def sobol_indices(factors: Sequence[Factor], model: Model, outputs: Sequence[str
                 continue
             d = _given_data(problem, X, Y[o], seed)
             floor = float(d["delta_raw"][-1])
-            deltas = _clipped(o, "δ", {a: (float(d["delta_raw"][i]), _interval(d["delta_raw"][i], d["delta_raw_conf"][i]))
+            deltas = clipped(o, "δ", {a: (float(d["delta_raw"][i]), _interval(d["delta_raw"][i], d["delta_raw_conf"][i]))
                                        for i, a in enumerate(names)}, notes)
-            firsts = _clipped(o, "S1", {a: (float(d["S1"][i]), _interval(d["S1"][i], d["S1_conf"][i]))
+            firsts = clipped(o, "S1", {a: (float(d["S1"][i]), _interval(d["S1"][i], d["S1_conf"][i]))
                                         for i, a in enumerate(names)}, notes)
             for a in names:
                 result[(a, o)] = {"method": "delta", "first": firsts[a], "delta": deltas[a], "floor": floor}
             notes.append(f"{o}: {len(X) - n} of {len(X)} Sobol' runs gave no value: Borgonovo's δ and the given-data S1 "
                          f"over the {n} that did (a dummy factor's δ, the noise floor: {floor:.3f})")
-            _flag_precision(o, "δ", max(float(np.nanmax(d["delta_raw_conf"][:-1])), 0.0), n, "runs with a value",
+            flag_precision(o, "δ", max(float(np.nanmax(d["delta_raw_conf"][:-1])), 0.0), n, "runs with a value",
                             notes, power_of_two=False)
             continue
         s = sobol_analyze.analyze(problem, Y[o], calc_second_order=False, num_resamples=RESAMPLES,
                                   conf_level=CONFIDENCE, seed=stage_seed(seed, 4))
-        firsts = _clipped(o, "S1", {a: (float(s["S1"][i]), _interval(s["S1"][i], s["S1_conf"][i]))
+        firsts = clipped(o, "S1", {a: (float(s["S1"][i]), _interval(s["S1"][i], s["S1_conf"][i]))
                                     for i, a in enumerate(names)}, notes)
-        totals = _clipped(o, "ST", {a: (float(s["ST"][i]), _interval(s["ST"][i], s["ST_conf"][i]))
+        totals = clipped(o, "ST", {a: (float(s["ST"][i]), _interval(s["ST"][i], s["ST_conf"][i]))
                                     for i, a in enumerate(names)}, notes)
         for a in names:
             result[(a, o)] = {"method": "sobol", "first": firsts[a], "total": totals[a]}
-        _flag_precision(o, "ST", float(np.max(s["ST_conf"])), samples, "base samples (--samples)", notes)
+        flag_precision(o, "ST", float(np.max(s["ST_conf"])), samples, "base samples (--samples)", notes)
     return result, Y, notes
 
 

@@ -11,7 +11,8 @@ import os
 
 from lf_common.files import GENERATOR, json_safe, output_dir
 from twin.model.space import ModelSpace
-from tuner.sensitivity.analysis import CONFIDENCE, MIN_GIVEN, MIN_TOTAL, SCREEN_SHARE, TOO_FEW, Analysis
+from tuner.sensitivity.analysis import CONFIDENCE, MIN_GIVEN, MIN_TOTAL, SCREEN_SHARE, Analysis
+from tuner.sensitivity.precision import TOO_FEW
 from tuner.sensitivity.charts import graph_chart, indices_chart
 from tuner.sensitivity.relations import Relation, by_status
 

@@ -67,7 +67,7 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
     with loading():
         from tuner.sensitivity import (check_samples, chosen_factors, compare, document, learn, store, table,
                                        write_folder)
-        from tuner.sensitivity.analysis import TOO_FEW
+        from tuner.sensitivity.precision import TOO_FEW
         from tuner.sensitivity.laps import SAMPLES
         from twin.viz import recording
 
