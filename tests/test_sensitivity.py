@@ -186,6 +186,8 @@ def test_governors_names_only_what_was_measured():
     assert line.startswith("lap_time_s is governed by control.v_max (ST 0.50") and "motion.mu" not in line
     assert "supply_voltage" not in line, line
     assert governors(a, "energy_j") == "energy_j: no parameter measurably governs it (no indices measured)"
+    flagged = dataclasses.replace(a, notes=("too few samples: lap_time_s's ST intervals are up to ±0.89 wide …",))
+    assert governors(flagged, "lap_time_s").endswith("(too few samples for these to mean much: see the warning)")
 
 
 # --- what is varied, and over what

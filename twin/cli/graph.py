@@ -128,11 +128,15 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
 def governors(analysis, output: str) -> str:
     """What measurably governs one output (:attr:`Influence.measured`), the largest index first; or why nothing is
     named."""
+    with loading():
+        from tuner.sensitivity.precision import TOO_FEW
+
     measured = sorted((i for i in analysis.influences if i.output == output and i.measured), key=lambda i: -i.index)
+    flagged = any(n.startswith(f"{TOO_FEW}: {output}") for n in analysis.notes)
     if measured:
         return f"{output} is governed by " + ", ".join(
             f"{i.parameter} ({i.index_name} {i.index:.2f} [{i.index_interval[0]:.2f}, {i.index_interval[1]:.2f}])"
-            for i in measured[:3])
+            for i in measured[:3]) + (" (too few samples for these to mean much: see the warning)" if flagged else "")
     indexed = any(i.output == output and i.index is not None for i in analysis.influences)
     return (f"{output}: no parameter measurably governs it" +
             (" (every index below 0.05 or its interval reaching its floor)" if indexed else " (no indices measured)"))
