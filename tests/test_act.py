@@ -119,7 +119,7 @@ def stand_in_retune(monkeypatch):
     """retune_gains replaced: it proposes the given gains at once, as if raced over the whole envelope."""
     proposed = {}
 
-    def fake(twin, address, low, high, seeds, timeout):
+    def fake(twin, address, low, high, seeds, timeout, progress=None):
         return Retune(dict(proposed), True, True, {address: (low, high)}, 7.0, 0, 0.0, "stand-in")
 
     monkeypatch.setattr(tuner.live.act, "retune_gains", fake)

@@ -134,4 +134,7 @@ def test_a_categorical_study_ranks_motors_as_its_evidence_explains(tmp_path, cap
         assert mp["evidence"]["at_voltage_limit"] > 0.5 and lp["evidence"]["at_voltage_limit"] > 0.5
         ratio = lp["evidence"]["mean_speed_mps"] / mp["evidence"]["mean_speed_mps"]
         assert ratio == pytest.approx(450 / 720, rel=0.15)
-    assert doc["trends"][0].startswith("motor.model, fastest first: pololu-mp-6v-30")
+    # 4 iterations converge no design here, so no trend is stated over them (issue 36.4); the ranking above stands
+    # on each design's own laps and evidence
+    assert not any(d["converged"] for d in doc["designs"])
+    assert doc["trends"][0].startswith("motor.model: not enough designs with converged gains to tell (4 designs")

@@ -37,3 +37,21 @@ def test_chart_labels_mark_designs_whose_gains_did_not_converge():
 
     assert "not converged" in chart_label(result(False))
     assert "not converged" not in chart_label(result(True))
+
+
+def test_a_trend_is_stated_over_converged_designs_only():
+    """Issue 36: ``design --max-iter 5`` said "larger cad.L raises the converged lap time" above "2 of 2 designs …
+    before their gains converged"."""
+    from tuner.studies.design import trend
+
+    def result(length, median, converged):
+        return DesignResult({"cad.L": length}, True, None, {}, 5, 5, converged, (median,), 0, 0.003, 0.0)
+
+    stopped = [result(0.035, 7.0, False), result(0.055, 8.0, False)]
+    line = trend(stopped, "cad.L")
+    assert "raises" not in line and "not enough designs with converged gains" in line and "2 designs left out" in line
+    mixed = [result(0.035, 7.0, True), result(0.045, 9.5, False), result(0.055, 8.0, True), result(0.065, 7.5, True)]
+    line = trend(mixed, "cad.L")  # over 7.0, 8.0, 7.5: not monotonic; with the stopped 9.5 it would still not be
+    assert "0.035 → 7.000 s, 0.055 → 8.000 s, 0.065 → 7.500 s" in line and "0.045" not in line, line
+    assert "1 design left out: gains not converged, raise --max-iter" in line
+    assert "raises" in trend(mixed[:3], "cad.L") and "0.045" not in trend(mixed[:3], "cad.L")

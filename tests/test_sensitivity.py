@@ -24,8 +24,9 @@ from tuner.sensitivity import (Analysis, Factor, Influence, analyse, barely_move
                                compare, default_factors, diagnosis_candidates, lap_time_warning, learn, load,
                                scan_spread, store)
 from tuner.sensitivity import laps as lap_model
-from tuner.sensitivity.laps import fill_failed, lap_outputs
+from tuner.sensitivity.laps import lap_outputs
 from tuner.sensitivity.analysis import MIN_TOTAL
+from tuner.sensitivity.ranges import ASSUMED
 from tuner.sensitivity.relations import CONFIRMED, NEGLIGIBLE, UNDECLARED, UNMEASURABLE, declared_path
 
 # --- the method on a function of known indices (Ishigami & Homma 1990; Sobol' & Levitan 1999 for the indices)
@@ -81,17 +82,114 @@ def _lap(completed: bool, **kw) -> LapResult:
 
 
 @pytest.mark.quick
-def test_a_failed_lap_has_zero_completion_and_the_median_of_the_completed_laps():
+def test_a_failed_lap_has_zero_completion_and_no_value_written_in(monkeypatch):
+    """The lap model gives NaN for what a failed lap does not have (the old code wrote in the completed laps' median,
+    and decomposed the variance of that made-up function)."""
     done, failed = lap_outputs(_lap(True)), lap_outputs(_lap(False))
     assert done == {"lap_time_s": 12.0, "completed": 1.0, "energy_j": 9.0, "max_cross_track_m": 0.01}
-    assert failed["completed"] == 0.0 and math.isnan(failed["lap_time_s"]) and math.isnan(failed["energy_j"])
-    rows = [done, lap_outputs(_lap(True, lap_time_s=14.0, energy_j=11.0)), failed,
-            lap_outputs(_lap(True, lap_time_s=13.0, energy_j=10.0))]
-    filled = fill_failed({o: np.array([r[o] for r in rows]) for o in rows[0]})
-    assert list(filled["lap_time_s"]) == [12.0, 14.0, 13.0, 13.0] and list(filled["completed"]) == [1, 1, 0, 1]
-    assert list(filled["energy_j"]) == [9.0, 11.0, 10.0, 10.0]
-    none = fill_failed({o: np.array([failed[o]]) for o in failed})
-    assert math.isnan(none["lap_time_s"][0])
+    laps = [_lap(True), _lap(True, lap_time_s=14.0, energy_j=11.0), _lap(False), _lap(True, lap_time_s=13.0)]
+    monkeypatch.setattr(lap_model, "run_laps", lambda twin, variants, **kw: laps[:len(variants)])
+    out = lap_model.LapModel(DigitalTwin(track="circle"))(["motion.mu"], np.array([[0.9], [0.8], [0.7], [0.6]]))
+    assert list(out["completed"]) == [1, 1, 0, 1] and list(out["lap_time_s"][[0, 1, 3]]) == [12.0, 14.0, 13.0]
+    assert math.isnan(out["lap_time_s"][2]) and math.isnan(out["energy_j"][2])
+
+
+def censored(names, X):
+    """y = x1 where the run "completes" (x2 ≤ 0.5), no value where it fails; x3 reads nothing. Over the completing
+    runs y is a function of x1 alone (Borgonovo's δ of x1 is then 1, of x2 and x3 0: Borgonovo 2007, §3); whether
+    a run completes is a function of x2 alone (its S1 = ST = 1, the others' 0)."""
+    full = {n: np.full(len(X), 0.25) for n in ("x1", "x2", "x3")}
+    for i, n in enumerate(names):
+        full[n] = X[:, i]
+    ok = full["x2"] <= 0.5
+    return {"y": np.where(ok, full["x1"], np.nan), "completed": ok.astype(float)}
+
+
+def test_an_output_failed_runs_do_not_give_is_analysed_over_the_runs_that_complete():
+    """With the median written in, x2 (what makes runs fail) took most of y's variance; measured over the completing
+    runs, y is x1's alone and the completion x2's alone."""
+    factors = [Factor(n, 0.0, 1.0, "-", "test", True) for n in ("x1", "x2", "x3")]
+    a = analyse(factors, censored, ["y", "completed"], samples=128, trajectories=20, seed=0)
+    y1, y2 = a.influence("x1", "y"), a.influence("x2", "y")
+    assert y1.method == "delta" and y1.measured and y1.delta > 0.5, y1  # δ = 1 exactly; the estimator is biased low
+    assert not y2.measured and y2.delta < 0.1, y2
+    assert y1.first > 0.8, y1  # given-data S1: Var(E[y | x1]) / Var(y) = 1
+    c1, c2 = a.influence("x1", "completed"), a.influence("x2", "completed")
+    assert c2.method == "sobol" and c2.total_interval[0] <= 1.0 <= c2.total_interval[1] and c2.measured, c2
+    assert not c1.measured, c1
+    assert a.influence("x3", "y").method == "morris"  # screened out: μ* 0 over every step with a value
+    assert any(n.startswith("y: ") and "gave no value" in n for n in a.notes)
+    assert a.summary["y"]["max"] <= 1.0  # over the values that exist, none written in
+    again = analyse(factors, censored, ["y", "completed"], samples=128, trajectories=20, seed=0)
+    assert again.influences == a.influences  # the same seed, bit-identical δ (SALib's global generator reseeded)
+
+
+def test_morris_over_the_steps_with_a_value_is_salibs_when_every_run_has_one():
+    """The hand-counted elementary effects a censored output needs, against SALib's own on Ishigami (no run
+    missing): the same μ* and σ."""
+    from SALib.analyze import morris as morris_analyze
+    from SALib.sample import morris as morris_sample
+    from tuner.sensitivity.analysis import problem_of, screen_censored
+
+    factors = [Factor(n, -math.pi, math.pi, "-", "test", True) for n in ("x1", "x2", "x3", "x4")]
+    problem = problem_of(factors)
+    X = morris_sample.sample(problem, N=10, num_levels=4, seed=5)
+    y = ishigami([f.address for f in factors], X)["y"]
+    ref = morris_analyze.analyze(problem, X, y, num_levels=4, seed=5)
+    mine = screen_censored(factors, X, y, 0, "y", [])
+    for i, f in enumerate(factors):
+        mu, _, sigma = mine[(f.address, "y")]
+        assert mu == pytest.approx(ref["mu_star"][i], abs=1e-12) and sigma == pytest.approx(ref["sigma"][i], abs=1e-12)
+
+
+def test_a_small_sample_is_flagged_with_what_it_would_need_and_indices_stay_in_0_1():
+    """At N = 8 Saltelli's estimates of Ishigami's indices leave [0, 1] and their intervals are about as wide as
+    the range: every index is clipped with a note naming the raw value, and a "too few samples" note gives the N
+    that narrows the widest interval to ±0.1 (half-widths shrink as 1/√N)."""
+    from SALib.analyze import sobol as sobol_analyze
+    from SALib.sample import sobol as sobol_sample
+    from tuner.sensitivity.analysis import problem_of, stage_seed
+    from tuner.sensitivity.precision import TOO_FEW
+
+    factors = [Factor(n, -math.pi, math.pi, "-", "test", True) for n in ("x1", "x2", "x3")]
+    a = analyse(factors, ishigami, ["y"], samples=8, trajectories=4, seed=0)
+    problem = problem_of(sorted((f for f in factors if f.address in a.selected), key=lambda f: a.selected.index(f.address)))
+    # the same Sobol' stage straight from SALib: its raw estimates
+    X = sobol_sample.sample(problem, 8, calc_second_order=False, scramble=True, seed=stage_seed(0, 3))
+    raw = sobol_analyze.analyze(problem, ishigami(problem["names"], X)["y"], calc_second_order=False,
+                                num_resamples=1000, seed=stage_seed(0, 4))
+    outside = [n for k, n in enumerate(problem["names"])
+               if not all(0 <= v <= 1 for v in (raw["ST"][k] - raw["ST_conf"][k], raw["ST"][k] + raw["ST_conf"][k]))]
+    assert outside, "N = 8 should put some raw ST interval outside [0, 1]"
+    for i in a.influences:
+        for v in (i.first, *i.first_interval, i.total, *i.total_interval):
+            assert 0.0 <= v <= 1.0, i
+    clip = next(n for n in a.notes if "outside [0, 1]" in n and "ST" in n)
+    assert all(f in clip for f in outside), clip
+    half = float(np.max(raw["ST_conf"]))
+    need = 2 ** math.ceil(math.log2(math.ceil(8 * (half / 0.1) ** 2)))
+    flag = next(n for n in a.notes if n.startswith(TOO_FEW))
+    assert f"needs about {need:,} base samples" in flag, (flag, need)
+
+
+@pytest.mark.quick
+def test_governors_names_only_what_was_measured():
+    """At --samples 8 the old summary said lap time "is governed by" indices whose intervals reached below 0, and
+    listed μ at ST 0.00 [0.00, 0.00]."""
+    from twin.cli.graph import governors
+
+    space = default_space()
+    a = _analysis(space, {("control.v_max", "lap_time_s"): 0.5, ("motion.mu", "lap_time_s"): 0.0}, {})
+    wide = dataclasses.replace(a.influence("motor.supply_voltage", "lap_time_s"), method="sobol", first=0.5,
+                               first_interval=(-0.4, 1.4), total=0.52, total_interval=(-0.37, 1.41))
+    a = dataclasses.replace(a, influences=tuple(wide if i.parameter == "motor.supply_voltage" and
+                                                i.output == "lap_time_s" else i for i in a.influences))
+    line = governors(a, "lap_time_s")
+    assert line.startswith("lap_time_s is governed by control.v_max (ST 0.50") and "motion.mu" not in line
+    assert "supply_voltage" not in line, line
+    assert governors(a, "energy_j") == "energy_j: no parameter measurably governs it (no indices measured)"
+    flagged = dataclasses.replace(a, notes=("too few samples: lap_time_s's ST intervals are up to ±0.89 wide …",))
+    assert governors(flagged, "lap_time_s").endswith("(too few samples for these to mean much: see the warning)")
 
 
 # --- what is varied, and over what
@@ -101,11 +199,25 @@ def test_default_factors_are_every_batchable_continuous_parameter_over_its_physi
     by = {f.address: f for f in factors}
     assert by["motion.mu"].lower == pytest.approx(0.3) and by["motion.mu"].upper == pytest.approx(1.2)
     assert by["motor.supply_voltage"].lower == pytest.approx(4.0) and by["motor.supply_voltage"].upper == pytest.approx(6.2)
-    assert by["control.kp"].lower == pytest.approx(12.0) and not by["control.kp"].documented  # ±25 %: assumed
+    assert by["control.kp"].lower == pytest.approx(12.0) and not by["control.kp"].documented  # ÷1.25: assumed
+    assert by["control.kp"].upper == pytest.approx(18.75)  # ×1.25: −20 %/+25 %, which the wording says
+    assert "−20 %/+25 %" in ASSUMED.source and "±25" not in ASSUMED.source
+    assert "acts on nothing" in left_out["motion.floor_mu"]  # see the test below
     for a in ("cad.L", "environment.line_width", "sensor.count", "control.cal_sweeps", "control.dt", "motion.timestep",
               "motor.gear", "control.ki"):
         assert a in left_out and a not in by, a
     assert set(by) | set(left_out) == set(space.addresses)
+
+
+def test_the_floor_friction_acts_on_nothing_in_a_lap():
+    """The tyres' and casters' contact priority leaves the floor's own friction to a chassis scraping the floor:
+    laps at its range's two ends and beyond are bit-identical, so the default analysis leaves it out."""
+    from twin.core.closed_loop import run_laps
+
+    twin = DigitalTwin(track="circle")
+    a, b = run_laps(twin, [{"motion.floor_mu": 0.05}, {"motion.floor_mu": 2.0}], seed=0, keep_traces=False)
+    assert a.completed and (a.lap_time_s, a.energy_j, a.max_cross_track_m) == (b.lap_time_s, b.energy_j,
+                                                                                b.max_cross_track_m)
 
 
 @pytest.mark.parametrize("params,bounds,match", [
@@ -152,7 +264,8 @@ def test_relations_confirmed_undeclared_negligible_and_unmeasurable():
     assert rel[("control.v_max", "lap_time_s")].why == "control → timing → motor → motion"
     assert rel[("sensor.noise", "max_cross_track_m")].status == UNDECLARED  # sensor feeds control only
     assert rel[("motion.mu", "lap_time_s")].status == NEGLIGIBLE  # ST 0.01 < 0.05
-    assert rel[("motion.floor_mu", "lap_time_s")].status == NEGLIGIBLE  # screened out
+    assert rel[("motion.floor_mu", "lap_time_s")].status == UNMEASURABLE  # left out: it acts on nothing in a lap
+    assert "acts on nothing" in rel[("motion.floor_mu", "lap_time_s")].why
     assert rel[("cad.L", "lap_time_s")].status == UNMEASURABLE and "rebuilds" in rel[("cad.L", "lap_time_s")].why
     assert ("cad.L", "energy_j") not in rel  # the CAD model feeds neither the motor nor the control
     assert ("control.kp", "lap_time_s") not in rel  # neither declared nor measured
@@ -204,9 +317,9 @@ def test_align_falls_back_on_its_own_laps_over_the_physical_range(tmp_path, monk
 
 # --- the twin itself
 def test_controlled_twin_case_lap_time_is_governed_by_the_top_speed():
-    """Every lap completes and only the top speed, the casters' floor friction and the derivative gain vary, in
+    """Every lap completes and only the top speed, the floor's own friction and the derivative gain vary, in
     narrow ranges: on a circle at ±8 % top speed the lap time is L / v plus a start-up, so its variance is the top
-    speed's (ST → 1); the casters do not touch the floor with friction (condim 1) and K_D ±10 % hardly steers a
+    speed's (ST → 1); the floor's friction meets neither tyre nor (frictionless) caster and K_D ±10 % hardly steers a
     robot that already follows a constant curvature."""
     twin = DigitalTwin(track="circle")
     factors = chosen_factors(twin.space, ["control.v_max", "motion.floor_mu", "control.kd"],
@@ -252,8 +365,20 @@ def test_a_default_analysis_with_fewer_samples_is_not_kept_for_diagnose_and_alig
     monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))
     assert main(["graph", "--learn", "--track", "circle", "--samples", "8", "--json", "-q", "--out-dir",
                  str(tmp_path / "out")]) == 0
-    doc = json.loads(capsys.readouterr().out)
+    r = capsys.readouterr()
+    doc = json.loads(r.out)
     assert doc["stored"] is None and not os.path.exists(tmp_path / "cache" / "learned")
+    TOO_FEW = "too few samples"
+    # and it says, loudly, that N = 8 is too small and what would do; nothing unmeasured is said to govern
+    assert doc["warnings"] and all(w.startswith(TOO_FEW) for w in doc["warnings"])
+    assert "warning: too few samples" in r.err and "motion.floor_mu" not in {f["address"] for f in doc["factors"]}
+    for i in doc["influences"]:
+        for k in ("first", "total", "delta"):
+            assert i[k] is None or 0.0 <= i[k] <= 1.0, i
+        if not i["measured"]:
+            assert not any(line.startswith(f"{i['output']} is governed by") and f"{i['parameter']} (" in line
+                           for line in r.err.splitlines()), i
+    assert "\nlearned influences: an analysis with fewer --samples than the default 256 is not kept" in r.err
 
 
 @pytest.mark.parametrize("args,match", [
@@ -265,3 +390,23 @@ def test_bad_learning_input_is_one_line_and_exit_2(args, match, tmp_path, capsys
     assert main(["graph", *args, *(["--out-dir", str(tmp_path / "o")] if "--learn" in args else [])]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and match in err, err
+
+
+def selected(names, X):
+    """y = x1 + x2 where the run completes, which it does when x2 ≥ x3 (a "grip" x3 that moves no completing run
+    but removes the runs with a small x2 when it is high): x3's δ over the completing runs is the selection's."""
+    full = {n: np.full(len(X), 0.5) for n in ("x1", "x2", "x3")}
+    for i, n in enumerate(names):
+        full[n] = X[:, i]
+    ok = full["x2"] >= full["x3"]
+    return {"y": np.where(ok, full["x1"] + full["x2"], np.nan), "completed": ok.astype(float)}
+
+
+def test_a_factor_that_only_selects_which_runs_complete_is_said_to():
+    factors = [Factor(n, 0.0, 1.0, "-", "test", True) for n in ("x1", "x2", "x3")]
+    a = analyse(factors, selected, ["y", "completed"], samples=256, trajectories=20, seed=0)
+    x3 = a.influence("x3", "y")
+    assert x3.mu_star == 0.0  # a completing run's y does not read x3
+    assert x3.method == "delta" and x3.measured, x3  # yet, over the completing runs, it tells y (selection)
+    assert any(n.startswith("y: x3 (δ") and "which laps complete" in n for n in a.notes), a.notes
+    assert not any("x1 (δ" in n or "x2 (δ" in n for n in a.notes)  # they move a completing run

@@ -140,3 +140,23 @@ def test_cli_out_gains_load_into_a_lap(tmp_path, capsys):
     lap = json.loads(capsys.readouterr().out)
     assert lap["lap_time_s"] == summary["final_lap_time_s"]
     assert b"tuning/lap_time" in rrd.read_bytes()
+
+
+def test_bounds_hit_are_the_values_on_a_bound():
+    space = SearchSpace(DigitalTwin(track="circle").space, ["control.v_max", "control.kp"],
+                        {"control.v_max": (0.3, 1.5), "control.kp": (5.0, 25.0)})
+    assert space.bounds_hit(np.array([1.5, 12.0])) == [("control.v_max", "upper", 1.5)]
+    assert space.bounds_hit(np.array([0.3, 25.0])) == [("control.v_max", "lower", 0.3), ("control.kp", "upper", 25.0)]
+    assert space.bounds_hit(np.array([1.49, 5.01])) == []  # 0.8 % and 0.05 % of the range inside: not on a bound
+
+
+def test_plain_tune_names_the_bound_it_hit_and_no_envelope(capsys):
+    """Issue 36: plain tune reported "completed over the envelope's corners" with no envelope, and did not say that
+    v_max ended on its upper bound. Top speed capped at its start value: a faster lap can only push it up, so one
+    iteration ends on that bound."""
+    assert tuner_main(["--param", "control.v_max", "--bounds", "control.v_max=0.3,0.6", "--track", "circle",
+                       "--max-iter", "1", "--held-out", "2", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "bound hit: control.v_max ended on its upper bound (0.6 m/s)" in out, out
+    assert "envelope" not in out, out
+    assert "held-out seeds" in out and "/2 laps completed" in out, out

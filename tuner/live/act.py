@@ -117,6 +117,7 @@ class Actor:
         self.version: int | None = None
         self.in_force_seq: int | None = None
         self.refusals = 0
+        self.retune_progress: Callable[[int, int], None] | None = None  # (done, planned) steps of each re-tune
         self.rolled_back_for: set[float] = set()
         self.pending_command: Command | None = None
         self.pending_store: int | None = None  # the STORE sent after the last confirmation
@@ -270,7 +271,8 @@ class Actor:
             return
         low, high = self._envelope(value, trend)
         timeout = 2 * robot_lap_s if robot_lap_s else 60.0
-        r = retune_gains(self.twin, self.address, low, high, tuple(range(self.seed, self.seed + self.o.seeds)), timeout)
+        r = retune_gains(self.twin, self.address, low, high, tuple(range(self.seed, self.seed + self.o.seeds)), timeout,
+                         progress=self.retune_progress)
         self._act("retune", None, aligned={self.address: value}, envelope=r.envelope, gains=r.gains, laps=r.laps,
                   wall_s=round(r.wall_s, 2), outcome=r.note + ("" if r.changed else "; no change"))
         if not r.changed:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -91,10 +92,28 @@ def _values(low: float, high: float, n: int) -> list[float]:
 
 
 def retune_gains(twin: DigitalTwin, address: str, low: float, high: float, seeds: tuple[int, ...], timeout_s: float = 60.0,
-           descent: DescentOptions = RETUNE_DESCENT) -> Retune:
+           descent: DescentOptions = RETUNE_DESCENT, progress: Callable[[int, int], None] | None = None) -> Retune:
     """Gains for the twin (its current values are the gains in force and the aligned parameter) that finish
     every lap with ``address`` at ``low`` and ``high`` and each of ``seeds``; the gains in force when they
-    already do."""
+    already do. ``progress(done, planned)``: steps of the re-tune (the race of the gains in force, each descent
+    iteration, the final race), ending with done = planned at its real end."""
+    planned, done = descent.max_iter + 2, 0
+
+    def step(_=None) -> None:
+        nonlocal done
+        done += 1
+        if progress:
+            progress(done, planned)
+
+    try:
+        return _retune(twin, address, low, high, seeds, timeout_s, descent, step)
+    finally:
+        if progress:
+            progress(done, done)  # its real end: fewer steps when the gains in force were kept or descent converged
+
+
+def _retune(twin: DigitalTwin, address: str, low: float, high: float, seeds: tuple[int, ...], timeout_s: float,
+            descent: DescentOptions, step: Callable) -> Retune:
     t0 = time.perf_counter()
     bounds = bounds_for(twin)
     current = {a: twin.space.get(a) for a in GAIN_ADDRESSES}
@@ -106,6 +125,7 @@ def retune_gains(twin: DigitalTwin, address: str, low: float, high: float, seeds
     objective = LapObjective(base, space, limits=limits, envelope=envelope, risk=Risk.parse(ROBUST_RISK))
     z0 = space.to_unit(np.array([start[a] for a in GAIN_ADDRESSES]))
     objective(z0[None])
+    step()
     first = objective.at(z0)
     axes = {a: vs for a, vs in envelope.axes}
     final = Envelope.of({address: _values(low, high, FINAL_VALUES)},
@@ -116,8 +136,9 @@ def retune_gains(twin: DigitalTwin, address: str, low: float, high: float, seeds
             return Retune(current, False, True, axes, max(r.lap_time_s for r in kept), objective.laps + len(kept),
                           time.perf_counter() - t0, "the gains in force finish every lap of the envelope")
     z, rescue = (z0, None) if all(r.completed for r in first.laps) else _slowed_start(objective, z0)
-    result = descend(objective, z, descent)
+    result = descend(objective, z, descent, on_iteration=step)
     gains, worst, raced = _final(twin, space, [result.z, z], final, limits)
+    step()
     note = (f"{len(result.iterations)} iterations from the gains in force" + (f" ({rescue})" if rescue else "")
             + ("" if worst is not None else "; no gains found that finish every lap of the envelope"))
     return Retune(gains, gains != on_the_wire(current), worst is not None, axes, worst, objective.laps + raced,

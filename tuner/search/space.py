@@ -57,6 +57,9 @@ class TunerError(TwinError):
     """Bad input to the learning model; the message names the input and the fault."""
 
 
+AT_BOUND = 1e-4  # a value this close to a bound (fraction of its range) ended on it
+
+
 @dataclasses.dataclass(frozen=True)
 class Bounded:
     """One searched parameter: its address and closed bounds [lower, upper] in its own unit."""
@@ -121,6 +124,13 @@ class SearchSpace:
             if not p.lower <= v <= p.upper:
                 raise TunerError(f"{p.address}: the start value {v:g} is outside its bounds [{p.lower:g}, {p.upper:g}]")
         return x
+
+    def bounds_hit(self, x: np.ndarray) -> list[tuple[str, str, float]]:
+        """(address, "lower" or "upper", bound) of each value within :data:`AT_BOUND` of its range from a bound:
+        the search could not go on that way, so the best may lie beyond."""
+        z = self.to_unit(x)
+        return [(p.address, side, bound) for p, zi in zip(self.params, z)
+                for side, bound, hit in (("lower", p.lower, zi <= AT_BOUND), ("upper", p.upper, zi >= 1 - AT_BOUND)) if hit]
 
     def assignments(self, x: np.ndarray) -> dict[str, float]:
         return {a: float(v) for a, v in zip(self.addresses, x)}

@@ -3,6 +3,7 @@
 * :mod:`tuner.sensitivity.ranges`: what is varied, over its documented physical range (:func:`default_factors`);
 * :mod:`tuner.sensitivity.analysis`: Morris screening, then Sobol' indices for the factors that matter (SALib),
   for any model (:func:`analyse`);
+* :mod:`tuner.sensitivity.precision`: how sure an index is (clipped to [0, 1] with a note; too few samples flagged);
 * :mod:`tuner.sensitivity.laps`: the twin's laps as that model (:func:`learn`: lap time, completion, energy,
   cross-track error);
 * :mod:`tuner.sensitivity.relations`: the learned graph against the declared one (:func:`compare`);

@@ -1,6 +1,6 @@
 """The learned graph drawn for a person: parameters on the left (by partial model), the lap's outputs on the right,
 an edge per relation (measured and declared: green; measured only: orange; declared but negligible or not
-measurable: grey, dotted), its width the total Sobol' index; and the indices themselves, per output, with their
+measurable: grey, dotted), its width the total Sobol' index (or δ); and the indices themselves, per output, with their
 95 % intervals. PNG files (matplotlib, no display needed)."""
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def graph_chart(path: str, analysis: Analysis, relations: Sequence[Relation], ti
     ax.set_xlim(-0.55, 1.35)
     ax.set_ylim(-0.06, 1.04)
     ax.axis("off")
-    ax.set_title(title + "\nedge width: total Sobol' index", fontsize=10)
+    ax.set_title(title + "\nedge width: total Sobol' index (δ over the completed laps where laps failed)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
@@ -77,14 +77,16 @@ def indices_chart(path: str, analysis: Analysis, title: str) -> None:
     ys = list(range(len(names)))[::-1]
     for ax, o in zip(axes, outs):
         rows = [analysis.influence(n, o) for n in names]
-        if not names or all(r is None or r.total is None for r in rows):
+        if not names or all(r is None or r.index is None for r in rows):
             ax.text(0.5, 0.5, "did not vary", ha="center", va="center", transform=ax.transAxes, fontsize=9)
         labelled = False
         for y, r in zip(ys, rows):
-            if r is None or r.total is None:
+            if r is None or r.index is None:
                 continue
-            ax.barh(y + 0.18, r.total, height=0.34, color="tab:blue", label=None if labelled else "total ST")
-            ax.errorbar(r.total, y + 0.18, xerr=[[r.total - r.total_interval[0]], [r.total_interval[1] - r.total]],
+            (lo, hi), v = r.index_interval, r.index
+            ax.barh(y + 0.18, v, height=0.34, color="tab:green" if r.method == "delta" else "tab:blue",
+                    label=None if labelled else f"{'δ (completed laps)' if r.method == 'delta' else 'total ST'}")
+            ax.errorbar(v, y + 0.18, xerr=[[v - lo], [hi - v]],
                         fmt="none", ecolor="k", lw=0.8, capsize=2)
             ax.barh(y - 0.18, r.first, height=0.34, color="tab:orange", label=None if labelled else "first S1")
             labelled = True

@@ -8,10 +8,12 @@ Outputs of each lap (:data:`OUTPUTS`):
 * ``max_cross_track_m``: the largest distance of the centre of rotation from the line.
 
 A failed lap has no lap time, and its energy and cross-track error stop where it failed (a failed calibration turn:
-0 J and 0 m), so each of these three takes, for a failed lap, the median of the completed laps of the same batch
-(:func:`fill_failed`): a failed lap adds no variance, and their indices say what moves the laps that complete, while
-``completed`` says what makes laps fail. (The tuner's penalised cost instead would make one failed lap in ten
-dominate every variance: the indices would repeat the completion's, with intervals as wide as the indices.)
+0 J and 0 m), so these three are NaN for a failed lap, never a value written in: ``completed`` says what makes laps
+fail (Sobol' indices of a 0/1 output: shares of the variance of failing), and the analysis measures the other three
+over the laps that complete with a method fit for an output some runs do not give (Morris over the steps whose two
+laps complete, Borgonovo's δ over the completed laps: :mod:`tuner.sensitivity.analysis`). (Writing in the completed
+laps' median would decompose the variance of a made-up function, flattened wherever laps fail; the tuner's
+penalised cost would make one failed lap in ten dominate every variance.)
 
 Every lap runs with the same noise seed (common random numbers): the outputs differ by the parameters alone. Laps
 run in batches of at most :data:`CHUNK_LAPS`: each lap with its own motor and friction values holds its own copy of
@@ -45,22 +47,11 @@ MAX_SOBOL = 8  # factors that get Sobol' indices at most
 
 
 def lap_outputs(r: LapResult) -> dict[str, float]:
-    """The four outputs of one lap as run: NaN where a failed lap has no value (see :func:`fill_failed`)."""
+    """The four outputs of one lap as run: NaN where a failed lap has no value."""
     if not r.completed:
         return {"lap_time_s": math.nan, "completed": 0.0, "energy_j": math.nan, "max_cross_track_m": math.nan}
     return {"lap_time_s": float(r.lap_time_s), "completed": 1.0, "energy_j": float(r.energy_j),
             "max_cross_track_m": float(r.max_cross_track_m)}
-
-
-def fill_failed(outputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Each failed lap's lap time, energy and cross-track error := the median over the completed laps (they stay NaN
-    when no lap completed: the analysis then reports that output as without values)."""
-    done = outputs["completed"] > 0
-    out = dict(outputs)
-    for o in ("lap_time_s", "energy_j", "max_cross_track_m"):
-        if done.any():
-            out[o] = np.where(done, outputs[o], np.median(outputs[o][done]))
-    return out
 
 
 class LapModel:
@@ -91,7 +82,7 @@ class LapModel:
             self.laps += len(variants)
             if self.on_laps:
                 self.on_laps(len(variants))
-        return fill_failed({o: np.array([row[o] for row in rows]) for o in OUTPUTS})
+        return {o: np.array([row[o] for row in rows]) for o in OUTPUTS}
 
 
 PROBE_LAPS = 4  # laps timed to say how long a refused analysis would take
@@ -168,6 +159,6 @@ def learn(twin: DigitalTwin, factors: Sequence[Factor] | None = None, samples: i
     notes = result.notes
     if failed:
         kinds = ", ".join(f"{n} {k}" for k, n in extra["failures"].items())
-        notes += (f"{failed} of {model.laps} laps failed ({kinds}): completed says what makes them fail; their lap time, "
-                  "energy and cross-track error are the completed laps' median",)
+        notes += (f"{failed} of {model.laps} laps failed ({kinds}): completed says what makes them fail; the lap time, "
+                  "energy and cross-track error are analysed over the laps that completed",)
     return dataclasses.replace(result, extra=extra, notes=notes)

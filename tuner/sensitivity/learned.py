@@ -33,7 +33,7 @@ from tuner.sensitivity.ranges import default_factors, is_setting, physical_range
 
 log = logging.getLogger(__name__)
 
-FORMAT = 1  # of the stored analysis; a new format is a new key
+FORMAT = 2  # of the stored analysis; a new format is a new key (2: failed laps no longer written in as the median)
 MAX_BYTES = 16 * 1024 * 1024
 CANDIDATE_SHARE = 0.01  # a diagnosis candidate moves the lap time by at least 1 % over its physical range
 CANDIDATES_MAX = 4

@@ -3,14 +3,15 @@
 A **factor** is one varied parameter with its range. By default every continuous parameter that can differ between
 the laps of one batch (change cost ``model_field`` or ``controller``) and has a physical range is varied, each over
 its documented physical range (:data:`PHYSICAL_RANGES`: factors of the twin's own value, with their source), or,
-where none is documented, over :data:`ASSUMED` (÷1.25 to ×1.25, the same ±25 % ``diagnose`` assumes); and the gains
-a person tunes (Eq. 13, :data:`GAINS`), explored over the same ±25 % around their values.
+where none is documented, over :data:`ASSUMED` (÷1.25 to ×1.25, i.e. −20 % to +25 %, the range ``diagnose``
+assumes); and the gains a person tunes (Eq. 13, :data:`GAINS`), explored over the same −20 %/+25 % around their
+values.
 
 Left out by default, with the reason (:func:`default_factors` returns them): parameters that rebuild the robot or
 track (``cad.*``, ``environment.*``, the sensor count and pitch: a design study varies them), whole numbers, the
 solver's numerical settings, the control period (a whole number of physics steps), the gear ratio (fixed by the
-gear train), the firmware's other settings (:func:`is_setting`: fixed on the robot, no physical range) and
-parameters whose value is 0 (no scale to vary them by). ``--param`` with ``--bounds`` varies any of the continuous
+gear train), the firmware's other settings (:func:`is_setting`: fixed on the robot, no physical range), parameters
+that act on nothing in a lap (:data:`INERT`: the floor's own friction) and parameters whose value is 0 (no scale to vary them by). ``--param`` with ``--bounds`` varies any of the continuous
 ones anyway.
 """
 
@@ -47,7 +48,7 @@ PHYSICAL_RANGES: dict[str, PhysicalRange] = {
                              "−10 %); +5 % for the unit-to-unit spread, assumed"),
     "cad.m_c": PhysicalRange(1.0, 2.0, "a payload up to the chassis' own mass (a second battery pack, a camera)"),
 }
-ASSUMED = PhysicalRange(0.8, 1.25, "no documented range: ±25 % assumed")
+ASSUMED = PhysicalRange(0.8, 1.25, "no documented range: −20 %/+25 % (÷1.25 to ×1.25) assumed")
 
 # left out by default (still allowed with --param and --bounds, except where it says cannot)
 NUMERICAL = {"motion.timestep": "the physics step: a numerical setting, not the robot (cannot: the control period "
@@ -56,6 +57,10 @@ NUMERICAL = {"motion.timestep": "the physics step: a numerical setting, not the 
 DISCRETE = {"control.dt": "the control period is a whole number of physics steps: not continuous (cannot)",
             "motor.gear": "the gear train fixes the ratio: no physical spread"}
 CANNOT = ("motion.timestep", "control.dt")
+# act on nothing in a lap: the tyres and the ball casters have contact priority (mjcf.world, mjcf.urdf_to_mjcf), so
+# the floor's own friction governs only a chassis touching the floor, which a lap never has
+INERT = {"motion.floor_mu": "acts on nothing in a lap: the tyres' μ (motion.mu) governs their contacts and the casters "
+                            "are frictionless; the floor's own friction only meets a chassis scraping the floor"}
 SETTINGS = ("sensor.timeout",)  # besides control.*: the firmware's read timeout
 GAINS = ("control.v_max", "control.kb", "control.kp", "control.ki", "control.kd")  # Eq. 13: varied by default
 
@@ -105,7 +110,7 @@ def default_factors(space: ModelSpace) -> tuple[list[Factor], dict[str, str]]:
     for every parameter left out."""
     factors, left_out = [], {}
     for a in space.addresses:
-        why = why_not_varied(space, a) or NUMERICAL.get(a) or DISCRETE.get(a)
+        why = why_not_varied(space, a) or NUMERICAL.get(a) or DISCRETE.get(a) or INERT.get(a)
         if why is None and is_setting(a) and a not in GAINS:
             why = "a firmware setting, fixed on the robot: no physical range (vary it with --param and --bounds)"
         rng = None if why else physical_range(space, a)

@@ -7,7 +7,8 @@ the sensor readings, which say whether the line is lost; the energy from the mot
 parameter is declared to govern an output when its model produces one of those ports or has a declared relation
 into a model that does: one edge of the declared graph, as a person reading it would follow it.
 
-**Measured**: the output's total Sobol' index is at least 0.05 with its 95 % interval above 0
+**Measured**: the output's total Sobol' index (or, for an output failed laps do not give, Borgonovo's δ over the
+completed laps) is at least 0.05 with its 95 % interval above 0 (δ: above a dummy factor's)
 (:attr:`tuner.sensitivity.analysis.Influence.measured`).
 
 Each (parameter, output) pair is then
@@ -42,14 +43,15 @@ CONFIRMED, UNDECLARED, NEGLIGIBLE, UNMEASURABLE = ("confirmed", "measured, not d
 
 @dataclasses.dataclass(frozen=True)
 class Relation:
-    """One (parameter, output) pair and its status; ``total`` is the measured total index (None if not measured);
-    ``why`` the declared path or the reason it is not measurable."""
+    """One (parameter, output) pair and its status; ``total`` is the measured index, ST or δ as ``index`` says (None
+    if not measured); ``why`` the declared path or the reason it is not measurable."""
 
     parameter: str
     output: str
     status: str
     total: float | None
     why: str
+    index: str = "ST"
 
 
 def producers(space: ModelSpace, output: str) -> set[str]:
@@ -103,7 +105,7 @@ def compare(space: ModelSpace, analysis: Analysis) -> list[Relation]:
             if infl.measured:
                 status = CONFIRMED if decl else UNDECLARED
                 why = declared_path(space, model, o)
-                out.append(Relation(address, o, status, infl.total, why))
+                out.append(Relation(address, o, status, infl.index, why, infl.index_name))
             elif decl:
                 stats = analysis.summary.get(o) or {}
                 if not stats:
@@ -113,8 +115,10 @@ def compare(space: ModelSpace, analysis: Analysis) -> list[Relation]:
                 elif infl.method == "morris":
                     why = f"screened out by Morris (μ* {infl.mu_star:.3g})"
                 else:
-                    why = f"total index {infl.total:.3f} [{infl.total_interval[0]:.3f}, {infl.total_interval[1]:.3f}]"
-                out.append(Relation(address, o, NEGLIGIBLE, infl.total, why))
+                    lo, hi = infl.index_interval
+                    why = f"{infl.index_name} {infl.index:.3f} [{lo:.3f}, {hi:.3f}]" + (
+                        f", dummy factor's δ {infl.floor:.3f}" if infl.method == "delta" else "")
+                out.append(Relation(address, o, NEGLIGIBLE, infl.index, why, infl.index_name))
     return out
 
 
@@ -142,7 +146,8 @@ def table(space: ModelSpace, analysis: Analysis, relations: list[Relation]) -> l
             if r is None:
                 cells.append(f"{'':>17s}")
             elif r.total is not None and r.status != NEGLIGIBLE:
-                cells.append(f"{SYMBOL[r.status]} {r.total:>5.2f}".rjust(17))
+                mark = "δ" if r.index == "δ" else ""
+                cells.append(f"{SYMBOL[r.status]} {mark}{r.total:>5.2f}".rjust(17))
             else:
                 cells.append(SYMBOL[r.status].rjust(17))
         lines.append(f"{f.address:{width}s}  " + "  ".join(cells))
@@ -154,5 +159,5 @@ def table(space: ModelSpace, analysis: Analysis, relations: list[Relation]) -> l
         outs = sorted({r.output for r in relations if r.parameter in params and r.status == UNMEASURABLE})
         lines.append(f"× {', '.join(params)}: {why} (declared for {', '.join(outs)})")
     lines.append("✓ confirmed  + measured, not declared  · declared, negligible  × declared, not measurable; "
-                 "numbers: total Sobol' index")
+                 "numbers: total Sobol' index, δ: Borgonovo's δ over the completed laps")
     return lines

@@ -11,12 +11,13 @@ import os
 
 from lf_common.files import GENERATOR, json_safe, output_dir
 from twin.model.space import ModelSpace
-from tuner.sensitivity.analysis import CONFIDENCE, MIN_TOTAL, SCREEN_SHARE, Analysis
+from tuner.sensitivity.analysis import CONFIDENCE, MIN_GIVEN, MIN_TOTAL, SCREEN_SHARE, Analysis
+from tuner.sensitivity.precision import TOO_FEW
 from tuner.sensitivity.charts import graph_chart, indices_chart
 from tuner.sensitivity.relations import Relation, by_status
 
 INFLUENCE_FIELDS = ("parameter", "output", "first", "first_interval", "total", "total_interval", "method", "mu_star",
-                    "mu_star_interval", "sigma")
+                    "mu_star_interval", "sigma", "delta", "delta_interval", "floor", "measured")
 
 
 def document(space: ModelSpace, analysis: Analysis, relations: list[Relation]) -> dict:
@@ -38,11 +39,17 @@ def document(space: ModelSpace, analysis: Analysis, relations: list[Relation]) -
                                 f"reaches {SCREEN_SHARE:g} of the largest on some output",
                    "indices": f"Sobol' first and total order, Saltelli sampling N = {analysis.samples} on a scrambled "
                               f"Sobol' sequence, {CONFIDENCE:.0%} bootstrap intervals (SALib)",
-                   "measured": f"total index ≥ {MIN_TOTAL:g} with its interval above 0",
-                   "failed_laps": "completed is 1 or 0; a failed lap's lap time, energy and cross-track error are the "
-                                  "median of the completed laps of its batch (it adds no variance to them)",
+                   "measured": f"total index (or δ) ≥ {MIN_TOTAL:g} with its interval above 0 (δ: above a dummy "
+                               "factor's δ)",
+                   "failed_laps": "completed is 1 or 0 (its own Sobol' indices); a failed lap has no lap time, energy "
+                                  "or cross-track error and none is written in: Morris uses the steps whose two laps "
+                                  "completed, and where a Sobol' stage has failed laps those outputs get Borgonovo's "
+                                  "moment-independent δ and the given-data S1 over the completed laps (Borgonovo 2007; "
+                                  "Plischke, Borgonovo & Smith 2013; SALib delta), which need no sampling design and "
+                                  f"allow dependent inputs; at least {MIN_GIVEN} completed laps",
                    "seed": analysis.seed},
         "notes": list(analysis.notes),
+        "warnings": [n for n in analysis.notes if n.startswith(TOO_FEW)],
     }
 
 
@@ -56,11 +63,13 @@ def write_folder(out_dir: str, space: ModelSpace, analysis: Analysis, relations:
         with open(os.path.join(tmp, "influences.csv"), "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(["parameter", "output", "method", "first", "first_low", "first_high", "total", "total_low",
-                        "total_high", "mu_star", "mu_star_low", "mu_star_high", "sigma"])
+                        "total_high", "mu_star", "mu_star_low", "mu_star_high", "sigma", "delta", "delta_low",
+                        "delta_high", "delta_dummy"])
+            blank = lambda v: "" if v is None else v  # noqa: E731
             for i in analysis.influences:
-                fi, ti = i.first_interval or ("", ""), i.total_interval or ("", "")
-                w.writerow([i.parameter, i.output, i.method, "" if i.first is None else i.first, *fi,
-                            "" if i.total is None else i.total, *ti, i.mu_star, *i.mu_star_interval, i.sigma])
+                fi, ti, di = (iv or ("", "") for iv in (i.first_interval, i.total_interval, i.delta_interval))
+                w.writerow([i.parameter, i.output, i.method, blank(i.first), *fi, blank(i.total), *ti, i.mu_star,
+                            *i.mu_star_interval, i.sigma, blank(i.delta), *di, blank(i.floor)])
         graph_chart(os.path.join(tmp, "learned_graph.png"), analysis, relations, title)
         indices_chart(os.path.join(tmp, "indices.png"), analysis, title)
     out = os.path.abspath(out_dir)

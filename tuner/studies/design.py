@@ -93,9 +93,35 @@ def grid(params: Mapping[str, Sequence[float]]) -> list[dict[str, float]]:
     return [dict(zip(names, combo)) for combo in itertools.product(*(params[n] for n in names))]
 
 
-def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -> DesignResult:
-    """Build, tune and evaluate one design (in a worker process). Never raises for a bad design."""
+def steps_per_design(laps: int, max_iter: int) -> int:
+    """What one design will do at most, in steps of progress: its tuning iterations, then its laps."""
+    return max_iter + laps
+
+
+def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int,
+               on_step: Callable[[str, int], None] | None = None) -> DesignResult:
+    """Build, tune and evaluate one design (in a worker process). Never raises for a bad design.
+
+    ``on_step("done", n)`` after each tuning iteration and lap; at the end ``on_step("skipped", n)`` for the steps of
+    :func:`steps_per_design` it did not need (a search that converged early, a design that failed)."""
     t0 = time.perf_counter()
+    done = 0
+
+    def step(it=None) -> None:
+        nonlocal done
+        done += 1
+        if on_step:
+            on_step("done", 1)
+
+    try:
+        return _run_design(design, base, laps, max_iter, t0, step)
+    finally:
+        if on_step and steps_per_design(laps, max_iter) > done:
+            on_step("skipped", steps_per_design(laps, max_iter) - done)
+
+
+def _run_design(design: dict[str, float], base: dict, laps: int, max_iter: int, t0: float,
+                step: Callable) -> DesignResult:
     try:
         twin = DigitalTwin(track=base["track"], track_metres_per_pixel=base.get("metres_per_pixel"))
         values = {**base["values"], **design}
@@ -115,16 +141,20 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
             gains, iterations, tuning_laps, converged, reason = {}, 0, 0, True, NOT_TUNED
         else:
             objective = LapObjective(twin, space, seed=0, nthread=1, envelope=envelope, risk=risk)
-            r = descend(objective, space.to_unit(space.start(twin.space)), DescentOptions(max_iter=max_iter))
+            r = descend(objective, space.to_unit(space.start(twin.space)), DescentOptions(max_iter=max_iter),
+                        on_iteration=step)
             gains = space.assignments(objective.best.x)
             iterations, tuning_laps, converged, reason = len(r.iterations), objective.laps, r.converged, r.reason
             twin.update(gains)
         if firmware is None:
-            evals = [run_laps(twin, [{}], seed=s, nthread=1, keep_traces=False)[0] for s in range(1, laps + 1)]
+            lap = lambda twin, s: run_laps(twin, [{}], seed=s, nthread=1, keep_traces=False)[0]  # noqa: E731
         else:
             script = base.get("operator")
             lap = firmware_lap(program, (lambda: load_script(script)) if script else Operator, LapLimits())
-            evals = [lap(twin, s) for s in range(1, laps + 1)]
+        evals = []
+        for s in range(1, laps + 1):
+            evals.append(lap(twin, s))
+            step()
         done = [e for e in evals if e.completed]
         return DesignResult(
             design, True, None, gains, iterations, tuning_laps, converged,
@@ -135,9 +165,21 @@ def run_design(design: dict[str, float], base: dict, laps: int, max_iter: int) -
         return DesignResult(design, False, str(e), {}, 0, 0, False, (), 0, math.nan, time.perf_counter() - t0)
 
 
-def _worker_start(parent_pid: int) -> None:
+_steps = None  # in a worker: the queue its designs' steps go to (see study)
+
+
+def _report_step(kind: str, n: int) -> None:
+    """A worker's ``on_step``: the step to the parent's queue."""
+    if _steps is not None:
+        _steps.put((kind, n))
+
+
+def _worker_start(parent_pid: int, steps=None) -> None:
     """In each worker: leave Ctrl-C to the parent (it reaches the whole process group), and exit when the
-    parent is gone, however it died (SIGKILL leaves no chance to clean up), instead of running on as an orphan."""
+    parent is gone, however it died (SIGKILL leaves no chance to clean up), instead of running on as an orphan;
+    ``steps``: the queue of its designs' progress."""
+    global _steps
+    _steps = steps
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def watch() -> None:
@@ -149,8 +191,10 @@ def _worker_start(parent_pid: int) -> None:
 
 
 def study(designs: Sequence[dict[str, float]], base: dict, laps: int = 20, max_iter: int = 30, workers: int = 0,
-          on_done: Callable[[DesignResult], None] | None = None) -> list[DesignResult]:
-    """Run every design (in parallel processes); results in the order of ``designs``.
+          on_done: Callable[[DesignResult], None] | None = None,
+          on_step: Callable[[str, int], None] | None = None) -> list[DesignResult]:
+    """Run every design (in parallel processes); results in the order of ``designs``. ``on_step``: each design's
+    progress (see :func:`run_design`), from the workers through a queue.
 
     An interrupt (Ctrl-C, SIGTERM raised as an exception in the main thread) stops the workers at once: the
     running designs are abandoned, not waited for.
@@ -159,15 +203,25 @@ def study(designs: Sequence[dict[str, float]], base: dict, laps: int = 20, max_i
     results: list[DesignResult | None] = [None] * len(designs)
     if workers == 1:
         for i, d in enumerate(designs):
-            results[i] = run_design(d, base, laps, max_iter)
+            results[i] = run_design(d, base, laps, max_iter, on_step)
             if on_done:
                 on_done(results[i])
         return results
     ctx = multiprocessing.get_context("spawn")  # fresh interpreters: MuJoCo and its callback set up per worker
+    steps = ctx.Queue() if on_step else None
+    drain = None
+    if steps is not None:
+        def relay() -> None:
+            for item in iter(steps.get, None):
+                on_step(*item)
+
+        drain = threading.Thread(target=relay, name="design-steps", daemon=True)
+        drain.start()
     pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(designs)), mp_context=ctx, initializer=_worker_start,
-                                  initargs=(os.getpid(),))
+                                  initargs=(os.getpid(), steps))
     try:
-        futures = {pool.submit(run_design, d, base, laps, max_iter): i for i, d in enumerate(designs)}
+        futures = {pool.submit(run_design, d, base, laps, max_iter, _report_step if steps else None): i
+                   for i, d in enumerate(designs)}
         for f in cf.as_completed(futures):
             results[futures[f]] = f.result()
             if on_done:
@@ -177,8 +231,13 @@ def study(designs: Sequence[dict[str, float]], base: dict, laps: int = 20, max_i
         for process in list(getattr(pool, "_processes", {}).values()):
             process.terminate()
         pool.shutdown(wait=False, cancel_futures=True)
+        if steps is not None:
+            steps.put(None)
         raise
-    pool.shutdown(wait=True)
+    pool.shutdown(wait=True)  # the workers have exited, so every step they queued is in the pipe
+    if drain is not None:
+        steps.put(None)  # after them: the relay ends once it has passed them on
+        drain.join(timeout=5.0)
     return results
 
 
@@ -195,20 +254,28 @@ def pareto(results: Sequence[DesignResult]) -> list[bool]:
 
 
 def trend(results: Sequence[DesignResult], address: str) -> str:
-    """A plain statement of how the median converged lap time moves with one parameter (others averaged)."""
+    """A plain statement of how the median lap time moves with one parameter (others averaged), over the designs
+    whose gains converged only: a design stopped at its iteration cap shows where its search was, not what the
+    design can do, so a trend through it would compare searches, not designs."""
     by: dict = {}
+    stopped = 0
     for r in results:
         if r.ok and r.lap_times_s:
+            if not r.converged:
+                stopped += 1
+                continue
             by.setdefault(r.design[address], []).append(r.median_s)
+    left = (f"; {stopped} design{'s' if stopped > 1 else ''} left out: gains not converged, raise --max-iter"
+            if stopped else "")
     if len(by) < 2:
-        return f"{address}: not enough completed designs to tell"
+        return f"{address}: not enough designs with converged gains to tell" + (f" ({left[2:]})" if stopped else "")
     if any(isinstance(x, str) for x in by):  # categorical: no order to speak of, fastest first
         ranked = sorted(by, key=lambda x: float(np.mean(by[x])))
         values = ", ".join(f"{x} → {float(np.mean(by[x])):.3f} s" for x in ranked)
-        return f"{address}, fastest first: {values} (mean of medians over the other parameters)"
+        return f"{address}, fastest first: {values} (mean of medians over the other parameters{left})"
     xs = sorted(by)
     means = [float(np.mean(by[x])) for x in xs]
     steps = np.sign(np.diff(means))
     shape = ("lowers" if np.all(steps < 0) else "raises" if np.all(steps > 0) else "does not move monotonically")
     values = ", ".join(f"{x:g} → {m:.3f} s" for x, m in zip(xs, means))
-    return f"larger {address} {shape} the converged lap time ({values}; mean of medians over the other parameters)"
+    return f"larger {address} {shape} the converged lap time ({values}; mean of medians over the other parameters{left})"

@@ -7,6 +7,7 @@ import time
 
 from lf_common.files import check_output_dir
 from twin.cli import options as o
+from twin.cli import progress
 from twin.cli import twin_options as tw
 from twin.cli.library_values import DESIGN_GRID
 from twin.cli.output import Output
@@ -68,7 +69,7 @@ def _check_firmware(args: argparse.Namespace, values: dict) -> tuple[dict, bool]
 
 def run(args: argparse.Namespace) -> int:
     with loading():
-        from tuner.studies.design import DEFAULT_GRID, grid, pareto, study, trend
+        from tuner.studies.design import DEFAULT_GRID, grid, pareto, steps_per_design, study, trend
         from tuner.studies.evidence import describe
         from tuner.studies.report import write_report
         from twin.core.maze import refuse_maze
@@ -103,14 +104,26 @@ def run(args: argparse.Namespace) -> int:
         refuse_maze(track, "the twin's controller")
     base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": values, "robust": args.robust,
             **firmware}
-    with loading():
-        from tqdm import tqdm
-
     t0 = time.perf_counter()
-    bar = tqdm(total=len(designs), desc="designs", unit="design", disable=args.quiet or None)
+    per_design = steps_per_design(args.laps, args.max_iter)
+    # counted in tuning iterations and laps, so the first design moves it too; a design that needs fewer (its
+    # search converged) takes its unused steps off the total
+    bar = progress.bar(args, len(designs) * per_design, f"{len(designs)} designs (tuning iterations, laps)", "step")
+    finished = 0
+
     def on_done(r):
-        bar.update(1)
-        bar.set_postfix_str(f"{r.label}: {r.median_s:.3f} s" if r.ok else f"{r.label}: failed")
+        nonlocal finished
+        finished += 1
+        if args.cluster:  # a Ray task reports nothing until it ends
+            bar.update(per_design)
+        bar.set_postfix_str(f"{finished}/{len(designs)} designs, {r.label}: "
+                            + (f"{r.median_s:.3f} s" if r.ok else "failed"))
+
+    def on_step(kind: str, n: int) -> None:
+        if kind == "done":
+            bar.update(n)
+        else:
+            progress.planned_steps(bar, -n)
 
     if args.cluster:
         if firmware:
@@ -120,8 +133,9 @@ def run(args: argparse.Namespace) -> int:
 
         results = study_on_ray(designs, base, args.laps, args.max_iter, args.cluster, on_done=on_done)
     else:
-        results = study(designs, base, laps=args.laps, max_iter=args.max_iter, workers=args.workers, on_done=on_done)
-    bar.close()
+        results = study(designs, base, laps=args.laps, max_iter=args.max_iter, workers=args.workers, on_done=on_done,
+                        on_step=None if bar.disable else on_step)
+    progress.finish(bar)
     wall = time.perf_counter() - t0
     front = pareto(results)
     trends = [trend(results, a) for a in params]

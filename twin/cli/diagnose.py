@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 
 from twin.cli import options as o
+from twin.cli import progress
 from twin.cli import twin_options as tw
 from twin.cli.library_values import DIAGNOSE_CANDIDATES
 from twin.cli.output import Output
@@ -32,7 +34,7 @@ def add_parser(sub) -> None:
     o.add_seed(p, 0, "the twin's noise seed")
     o.add_workers(p, "laps of a batch (threads)")
     o.add_json(p)
-    o.add_verbose(p)
+    o.add_verbose(p, quiet=True)
     p.set_defaults(run=run)
 
 
@@ -54,8 +56,18 @@ def run(args: argparse.Namespace) -> int:
     out.say(f"candidates: {source}")
     for a in candidates:
         twin.space.parameter(a)  # unknown address: one line before any lap
-    report = diagnose(twin, args.measured_lap_time, candidates, tel, seed=args.seed, nthread=args.workers,
-                      on_candidate=lambda d: out.say(f"  {d.address}: {d.message}"))
+    # a step per candidate's alignment, and the joint fit of the best two with telemetry (if two explain it)
+    bar = progress.bar(args, len(candidates) + (tel is not None), "diagnosis (candidates, joint fit)", "step")
+
+    def on_candidate(d) -> None:
+        bar.write(f"  {d.address}: {d.message}", file=sys.stderr if args.json else sys.stdout)
+        bar.update(1)
+
+    try:
+        report = diagnose(twin, args.measured_lap_time, candidates, tel, seed=args.seed, nthread=args.workers,
+                          on_candidate=on_candidate)
+    finally:
+        progress.finish(bar)
     doc = {"measured_lap_time_s": report.measured_lap_time_s, "nominal_lap_time_s": report.nominal_lap_time_s,
            "candidates": [dataclasses.asdict(d) for d in report.candidates], "skipped": list(report.skipped),
            "candidates_from": source,

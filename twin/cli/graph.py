@@ -9,6 +9,7 @@ import sys
 from lf_common.errors import LineFollowerError
 from lf_common.files import check_output_dir
 from twin.cli import options as o
+from twin.cli import progress
 from twin.cli import twin_options as tw
 from twin.cli.library_values import SENSITIVITY_MAX_SOBOL, SENSITIVITY_SAMPLES, SENSITIVITY_TRAJECTORIES
 from twin.cli.output import Output
@@ -23,11 +24,12 @@ def add_parser(sub) -> None:
     p = sub.add_parser("graph", help=HELP, description=HELP + " (paper §2, §3.8). With --learn: global sensitivity "
                        "from batches of laps (SALib): Morris screening over every parameter a batch can vary, each over "
                        "its documented physical range, then Sobol' indices for those that matter, for the lap time, "
-                       "completion, energy and cross-track error; the learned graph against the declared one (table, "
+                       "completion, energy and cross-track error (where laps fail: completion on its own, the others "
+                       "over the completed laps with Borgonovo's δ; nothing is written in for a failed lap); the learned graph against the declared one (table, "
                        f"{OUT_DIR}/learned_graph.png, indices.png, influences.csv, learned_graph.json). A default "
                        "analysis is kept for this twin, where diagnose and align find it. It runs "
                        f"{SENSITIVITY_TRAJECTORIES} (k + 1) + N (k' + 2) laps for k parameters of which k' ≤ "
-                       f"{SENSITIVITY_MAX_SOBOL} matter (the default robot: at most 2776 laps, a few minutes on 2 cores).")
+                       f"{SENSITIVITY_MAX_SOBOL} matter (the default robot: at most 2788 laps, a few minutes on 2 cores).")
     o.add_world(p)
     o.add_values(p)
     p.add_argument("--learn", action="store_true", help="measure the relations from laps (global sensitivity)")
@@ -63,10 +65,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _learn(args: argparse.Namespace, out: Output) -> int:
     with loading():
-        from tqdm import tqdm
-
         from tuner.sensitivity import (check_samples, chosen_factors, compare, document, learn, store, table,
                                        write_folder)
+        from tuner.sensitivity.precision import TOO_FEW
         from tuner.sensitivity.laps import SAMPLES
         from twin.viz import recording
 
@@ -79,18 +80,17 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
     twin = tw.twin_from_args(args)
     warning = tw.gains_warning(args, twin)
     factors = chosen_factors(twin.space, args.param, o.parse_bounds(args.bounds, args.param)) if args.param else None
-    bar = tqdm(total=0, desc="laps", unit="lap", file=sys.stderr, disable=args.quiet or None)
+    bar = progress.bar(args, 0, "laps", "lap")
 
     def on_stage(name: str, runs: int) -> None:
-        bar.total += runs
         bar.set_description(name)
-        bar.refresh()
+        progress.planned_steps(bar, runs)
 
     try:
         analysis = learn(twin, factors, samples=samples, seed=args.seed, nthread=args.workers, on_stage=on_stage,
                          on_laps=bar.update)
     finally:
-        bar.close()
+        progress.finish(bar)
     relations = compare(twin.space, analysis)
     title = f"learned graph: {twin.track.name} track, {analysis.extra['laps']} laps, seed {args.seed}"
     files = write_folder(out_dir, twin.space, analysis, relations, title)
@@ -110,16 +110,33 @@ def _learn(args: argparse.Namespace, out: Output) -> int:
     for line in table(twin.space, analysis, relations):
         out.say(line)
     for line in analysis.notes:
-        out.say(f"note: {line}")
+        if not line.startswith(TOO_FEW):  # those close the output, as warnings
+            out.say(f"note: {line}")
     for o_name in analysis.outputs:
-        top = sorted((i for i in analysis.influences if i.output == o_name and i.total is not None),
-                     key=lambda i: -i.total)[:3]
-        if top:
-            out.say(f"{o_name} is governed by " + ", ".join(
-                f"{i.parameter} (ST {i.total:.2f} [{i.total_interval[0]:.2f}, {i.total_interval[1]:.2f}])" for i in top))
+        out.say(governors(analysis, o_name))
     x = analysis.extra
     out.say(f"{x['laps']} laps ({analysis.morris_runs} Morris, {analysis.sobol_runs} Sobol'), "
             f"{100 * x['completion_rate']:.1f} % completed, in {x['wall_s']:.0f} s ({x['cpu_s']:.0f} s CPU); "
             f"wrote {files['folder']}" + (f" and {files['recording']}" if files["recording"] else ""))
-    out.say(f"learned influences {why}" + (f": {stored}" if stored else ""))
+    out.say(f"learned influences: {why}" + (f" ({stored})" if stored else ""))
+    for line in analysis.notes:
+        if line.startswith(TOO_FEW):
+            out.warn(line)
     return 0
+
+
+def governors(analysis, output: str) -> str:
+    """What measurably governs one output (:attr:`Influence.measured`), the largest index first; or why nothing is
+    named."""
+    with loading():
+        from tuner.sensitivity.precision import TOO_FEW
+
+    measured = sorted((i for i in analysis.influences if i.output == output and i.measured), key=lambda i: -i.index)
+    flagged = any(n.startswith(f"{TOO_FEW}: {output}") for n in analysis.notes)
+    if measured:
+        return f"{output} is governed by " + ", ".join(
+            f"{i.parameter} ({i.index_name} {i.index:.2f} [{i.index_interval[0]:.2f}, {i.index_interval[1]:.2f}])"
+            for i in measured[:3]) + (" (too few samples for these to mean much: see the warning)" if flagged else "")
+    indexed = any(i.output == output and i.index is not None for i in analysis.influences)
+    return (f"{output}: no parameter measurably governs it" +
+            (" (every index below 0.05 or its interval reaching its floor)" if indexed else " (no indices measured)"))

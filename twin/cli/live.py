@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 from lf_common.files import input_file
 from twin.cli import library_values as lib
 from twin.cli import options as o
+from twin.cli import progress
 from twin.cli import twin_options as tw
 from twin.cli.guard import EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_TERMINATED
 from twin.cli.output import Output
@@ -67,7 +68,7 @@ def add_parser(sub) -> None:
                    help="how long to wait for the robot's answer to a command")
     o.add_json(p)
     o.add_recording(p, "the comparison, lap by lap")
-    o.add_verbose(p)
+    o.add_verbose(p, quiet=True)
     p.set_defaults(run=run)
 
 
@@ -173,9 +174,11 @@ def _actor(args, twin, options: LiveOptions, outbox: Outbox, journal: Journal, o
     known = {a["seq"]: a["gains"] for a in past if a.get("kind") == "decide" and a.get("gains")}
     sent = [a["seq"] for a in past if isinstance(a.get("seq"), int)]
     act = ActOptions(every_laps=args.act_every, confirm_laps=args.confirm_laps, ack_timeout_s=args.ack_timeout)
-    return Actor(twin, options.address, act, options.seed,
-                 lambda line, deadline: outbox.put(line.encode("ascii"), deadline), on_action,
-                 next_seq=max(sent, default=0) + 1, known=known)
+    actor = Actor(twin, options.address, act, options.seed,
+                  lambda line, deadline: outbox.put(line.encode("ascii"), deadline), on_action,
+                  next_seq=max(sent, default=0) + 1, known=known)
+    actor.retune_progress = progress.Phases(args, "re-tune (race, descent, final race)", "step")
+    return actor
 
 
 def _action_printer(out: Output, journal: Journal, rec, actions: list[dict], db: HistoryWriter | None):

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from lf_common.files import check_output_dir
 from twin.cli import options as o
+from twin.cli import progress
 from twin.cli import twin_options as tw
 from twin.cli.output import Output
 from twin.cli.startup import loading
@@ -60,8 +61,6 @@ def parse_axis(text: str) -> Axis:
 
 def _sweep_on_cluster(args, twin, axes, seeds, out: Output):
     with loading():
-        from tqdm import tqdm
-
         from mjcf.track import BUILTIN_SEGMENTS
         from tuner.studies.cluster import sweep_on_ray
         from tuner.studies.sweep import grid_points, points_of
@@ -76,7 +75,7 @@ def _sweep_on_cluster(args, twin, axes, seeds, out: Output):
     grid = grid_points(axes)
     twin.model()  # built here too: a robot or track that cannot be built fails before any task is sent
     base = {"track": args.track, "metres_per_pixel": args.metres_per_pixel, "values": dict(twin.space.values)}
-    bar = tqdm(total=len(grid), desc="sweep points", unit="point", disable=None)
+    bar = progress.bar(args, len(grid), "sweep points", "point")
     try:
         laps = sweep_on_ray(grid, seeds, base, args.cluster, on_done=lambda _: bar.update(1))
     finally:
@@ -89,8 +88,6 @@ def _sweep_on_mcu(args, twin, program, script, axes, seeds):
     import copy
 
     with loading():
-        from tqdm import tqdm
-
         from tuner.studies.sweep import firmware_lap, sweep_firmware
         from twin.core.lap import LapLimits
         from twin.pil.board import Operator
@@ -98,8 +95,7 @@ def _sweep_on_mcu(args, twin, program, script, axes, seeds):
     tw.check_program_runs(twin, program)
     operator = (lambda: copy.deepcopy(script)) if script else Operator  # a fresh operator for each lap
     lap = firmware_lap(program, operator, LapLimits(timeout_s=args.lap_timeout))
-    bar = tqdm(total=math.prod(a.count for a in axes) * len(seeds), desc="sweep laps on the MCU", unit="lap",
-               disable=None)
+    bar = progress.bar(args, math.prod(a.count for a in axes) * len(seeds), "sweep laps on the MCU", "lap")
     try:
         return sweep_firmware(twin, axes, seeds, lap, on_lap=lambda _: bar.update(1))
     finally:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 from lf_common.files import check_output_file, json_is_ours
 from twin.cli import library_values as lib
 from twin.cli import options as o
+from twin.cli import progress
 from twin.cli import twin_options as tw
 from twin.cli.guard import run_command
 from twin.cli.output import Output
@@ -105,8 +106,9 @@ def envelope_from(args: argparse.Namespace, twin) -> tuple[Envelope, Risk]:
     return Envelope.of(axes, range(args.seed, args.seed + count)), risk
 
 
-def held_out(twin, values: dict, envelope: Envelope, count: int, workers: int) -> dict | None:
-    """The final values raced on ``count`` seeds never used in tuning, in every corner of the envelope: one batch."""
+def held_out(twin, values: dict, envelope: Envelope, count: int, workers: int, args: argparse.Namespace) -> dict | None:
+    """The final values raced on ``count`` seeds never used in tuning, in every corner of the envelope: one batch,
+    with a bar of its laps."""
     with loading():
         import numpy as np
 
@@ -117,8 +119,13 @@ def held_out(twin, values: dict, envelope: Envelope, count: int, workers: int) -
         return None
     seeds = held_out_seeds(envelope, count)
     corners = envelope.corners or [{}]
-    laps = run_laps(twin, [{**values, **c} for c in corners for _ in seeds], seed=[s for _ in corners for s in seeds],
-                    nthread=workers, keep_traces=False)
+    total = len(corners) * count
+    b = progress.bar(args, total, "held-out race", "lap")
+    try:
+        laps = run_laps(twin, [{**values, **c} for c in corners for _ in seeds], seed=[s for _ in corners for s in seeds],
+                        nthread=workers, keep_traces=False, on_chunk=lambda _s, running: b.update(total - running - b.n))
+    finally:
+        progress.finish(b)
     rows = []
     for j, c in enumerate(corners):
         part = laps[j * count:(j + 1) * count]
@@ -133,8 +140,6 @@ def held_out(twin, values: dict, envelope: Envelope, count: int, workers: int) -
 
 def run(args: argparse.Namespace) -> int:
     with loading():
-        from tqdm import tqdm
-
         from tuner.history import record_lap
         from tuner.recording import save_tuning
         from tuner.search.envelope import label
@@ -164,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     stop = _StopRequest()
     previous = signal.signal(signal.SIGINT, stop)
     t0 = time.perf_counter()
-    bar = tqdm(total=args.max_iter, desc=f"tuning ({args.method})", unit="it", file=sys.stderr, disable=args.quiet or None)
+    bar = progress.bar(args, args.max_iter, f"tuning ({args.method})", "it")
     iterations = []
 
     per_iteration = []
@@ -186,6 +191,7 @@ def run(args: argparse.Namespace) -> int:
             bar.write(f"note: {note}", file=sys.stderr)
         result = search(objective, z0, DescentOptions(max_iter=args.max_iter), on_iteration=on_iteration)
         converged, reason = result.converged, result.reason
+        progress.finish(bar)  # converged before the cap: that was the search's real end, so the bar ends full
     except (_Stop, KeyboardInterrupt):
         interrupted, converged, reason = True, False, "interrupted"
     finally:
@@ -196,8 +202,10 @@ def run(args: argparse.Namespace) -> int:
     if best is None:
         raise TunerError("interrupted before the first lap finished: nothing to report")
     values = space.assignments(best.x)
+    hit = [{"address": a, "side": side, "bound": b, "unit": twin.space.parameter(a).unit}
+           for a, side, b in space.bounds_hit(best.x)]
     final = best.lap
-    held = held_out(twin, values, envelope, args.held_out, args.workers)
+    held = held_out(twin, values, envelope, args.held_out, args.workers, args)
     summary = {
         "method": args.method, "initial_lap_time_s": objective.first.lap.lap_time_s, "initial_cost_s": objective.first.cost,
         "final_lap_time_s": final.lap_time_s, "final_cost_s": best.cost, "completed": final.completed,
@@ -206,6 +214,7 @@ def run(args: argparse.Namespace) -> int:
         "track": twin.track.name, "out": None, "recording": None, "risk": str(risk),
         "envelope": {"scenarios": [label(sc) for sc in envelope.scenarios], "seeds": list(envelope.seeds)},
         "final_scenarios": objective.by_scenario(best), "per_iteration": per_iteration, "held_out": held,
+        "bounds_hit": hit,
         "loads_with": "--gains" if all(a.startswith("control.") for a in values) else "--params",
     }
     if all(a.startswith("control.") for a in values):
@@ -226,13 +235,22 @@ def run(args: argparse.Namespace) -> int:
     out.say(f"{args.method}: lap {objective.first.cost:.3f} s → {t_final} in {len(iterations)} iterations, "
             f"{objective.laps} laps, {wall:.1f} s ({reason})")
     out.say("values: " + ", ".join(f"{a}={v:.4g}" for a, v in values.items()))
+    for h in hit:
+        unit = "" if h["unit"] == "-" else f" {h['unit']}"
+        out.say(f"bound hit: {h['address']} ended on its {h['side']} bound ({h['bound']:g}{unit}): the best may lie "
+                f"beyond it (widen it with --bounds {h['address']}=LO,HI)")
     if len(envelope) > 1:
         out.say(f"envelope: {len(envelope.scenarios)} scenarios × {len(envelope.seeds)} seeds, {risk} lap cost {best.cost:.3f} s")
         for row in summary["final_scenarios"]:
             t = row["lap_times_s"]
             out.say(f"  {row['scenario']}: {row['completed']}/{row['laps']} laps completed"
                     + (f", {min(t):.3f}–{max(t):.3f} s" if t else ""))
-    if held:
+    if held and not envelope.axes:  # no envelope: the twin as it is, on new seeds
+        row = held["corners"][0]
+        med = f", median {row['median_lap_time_s']:.3f} s" if row["median_lap_time_s"] else ""
+        out.say(f"held-out seeds {held['seeds'][0]}–{held['seeds'][1]}: {row['completed']}/{row['laps']} laps "
+                f"completed{med}")
+    elif held:
         out.say(f"held-out seeds {held['seeds'][0]}–{held['seeds'][1]}: {held['completion_rate'] * 100:.0f} % of laps "
                 "completed over the envelope's corners")
         for row in held["corners"]:
