@@ -1,17 +1,19 @@
-"""Datasheet figures → constants of Eqs. 6–7.
+"""Datasheet figures → constants of the gearmotor model (:class:`motors.constants.MotorConstants`).
 
-A gearmotor datasheet gives figures at the gearbox output: nominal voltage U, stall torque τ_s,
-stall current I_s, no-load speed Ω_0 (and no-load current I_0). Eqs. 6–7 have one K, no gearbox
-efficiency, and viscous friction b_M as the only loss, so they cannot reproduce every figure at once.
-We match the three that shape a lap:
+A gearmotor datasheet gives figures at the gearbox output at a nominal voltage U: stall torque τ_s, stall current
+I_s, no-load speed Ω_0 and no-load current I_0. A brushed motor with winding resistance R, one constant K
+(torque = back-EMF), a constant friction torque τ0 at its shaft and a gearbox of ratio G and efficiency η fits
+all four exactly (ω_0 = G·Ω_0 at the motor shaft, L_M = 0 in steady state):
 
-    R_M = U / I_s                          stall current (rotor still, no back-EMF)
-    K   = τ_s R_M / (G U)                  stall torque at the output
-    b_M = (K U / ω_0 − K²) / R_M           no-load speed, ω_0 = G Ω_0 at the motor shaft
+    R   = U / I_s                          the rotor held: no back-EMF
+    K   = (U − R·I_0) / ω_0                 the back-EMF at no load
+    τ0  = K·I_0                             at no load the motor's torque only overcomes its own friction
+    η   = τ_s / (G·K·(I_s − I_0))           the stall torque: τ_s = G·η·(K·I_s − τ0)
 
-Gearbox losses then live in b_M, so the model's no-load current b_M ω_0 / K is larger than the
-datasheet's I_0; :meth:`Datasheet.derived_no_load_current` reports it so the mismatch is visible.
-Inductance and rotor inertia are rarely on hobby datasheets; they are given explicitly.
+and b_M = 0 (a viscous loss would be a fifth figure's business). The figures are consistent when K > 0 and
+η ≤ 1; :class:`Datasheet` refuses others by name. Inductance and rotor inertia are rarely on hobby datasheets;
+they are given explicitly. A datasheet without a no-load current cannot be fitted: the catalogue says which
+figure it assumes instead (:mod:`motors.catalogue`).
 """
 
 from __future__ import annotations
@@ -33,11 +35,12 @@ class Datasheet:
       stall_torque: output stall torque in [N·m].
       stall_current: stall current in [A].
       no_load_speed: output no-load speed in [rad/s].
-      no_load_current: no-load current in [A], or None where not published (informative only, see module docstring).
+      no_load_current: no-load current in [A], or None where not published (then :meth:`constants` refuses).
       gear: gearbox ratio [-].
       inductance: winding inductance in [H].
       rotor_inertia: rotor inertia in [kg·m²].
       source: where the figures come from.
+      no_load_current_assumed: the no-load current is not the source's but assumed (the source says from where).
     """
 
     voltage: float
@@ -49,10 +52,11 @@ class Datasheet:
     inductance: float
     rotor_inertia: float
     source: str = ""
+    no_load_current_assumed: bool = False
 
     def __post_init__(self) -> None:
         for field in dataclasses.fields(self):
-            if field.name == "source" or (field.name == "no_load_current" and getattr(self, field.name) is None):
+            if field.name in ("source", "no_load_current_assumed") or (field.name == "no_load_current" and getattr(self, field.name) is None):
                 continue
             value = getattr(self, field.name)
             if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
@@ -60,22 +64,32 @@ class Datasheet:
         for name in ("voltage", "stall_torque", "stall_current", "no_load_speed", "gear"):
             if getattr(self, name) == 0:
                 raise MotorError(f"datasheet.{name}: must be > 0")
-        # b_M >= 0 needs K·ω_0 <= U: the stall torque and no-load speed must be consistent.
-        if self.stall_torque * self.no_load_speed > self.voltage * self.stall_current * 1.0000001:
-            raise MotorError(
-                "datasheet: stall torque × no-load speed exceeds U × I_stall; no ideal DC motor has these figures"
-            )
+        if self.no_load_current is not None:
+            self._fit()  # refuses figures no motor of this model has
+
+    def _fit(self) -> tuple[float, float, float, float]:
+        """(R, K, η, τ0) of the module docstring; a MotorError naming the inconsistent figures."""
+        if self.no_load_current is None:
+            raise MotorError("datasheet.no_load_current: not given; the fit needs it (assume one and say so in source)")
+        U, I_s, I_0 = self.voltage, self.stall_current, self.no_load_current
+        if I_0 >= I_s:
+            raise MotorError(f"datasheet: no-load current {I_0:g} A is not below the stall current {I_s:g} A")
+        R = U / I_s
+        K = (U - R * I_0) / (self.gear * self.no_load_speed)
+        eta = self.stall_torque / (self.gear * K * (I_s - I_0))
+        if eta > 1.0 + 1e-9:
+            raise MotorError(f"datasheet: stall torque needs a gearbox efficiency of {eta:.3g} > 1 with these speed and "
+                             "currents; no ideal DC motor has these figures")
+        return R, K, eta, K * I_0
 
     def constants(self) -> MotorConstants:
-        """Constants of Eqs. 6–7 matching stall current, stall torque and no-load speed exactly."""
-        R = self.voltage / self.stall_current
-        K = self.stall_torque * R / (self.gear * self.voltage)
-        omega_0 = self.gear * self.no_load_speed
-        b = max(0.0, (K * self.voltage / omega_0 - K * K) / R)
-        return MotorConstants(R_M=R, L_M=self.inductance, K=K, b_M=b, J_rotor=self.rotor_inertia, gear=self.gear)
+        """Constants matching stall current, stall torque, no-load speed and no-load current exactly."""
+        R, K, eta, tau0 = self._fit()
+        return MotorConstants(R_M=R, L_M=self.inductance, K=K, b_M=0.0, J_rotor=self.rotor_inertia, gear=self.gear,
+                              efficiency=min(1.0, eta), friction=tau0)
 
     def derived_no_load_current(self) -> float:
-        """No-load current in [A] that the fitted constants predict (compare with ``no_load_current``)."""
+        """No-load current in [A] that the fitted constants predict (the datasheet's, by construction)."""
         return self.constants().no_load_current(self.voltage)
 
 

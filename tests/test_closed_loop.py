@@ -46,19 +46,19 @@ def test_default_gains_complete_the_default_lap(default_lap, twin):
 
 
 def energy_lower_bound_j(distance_m: float, lap_time_s: float) -> float:
-    """Hand calculation from the datasheet (Pololu #2369: 6 V, 0.67 A and 0.032 N·m at stall, 720 rpm no-load,
-    29.86:1, 16 mm wheels) and Eqs. 6–7 with the friction lumped in b_M: at a steady motor speed ω the current is
-    I = b·ω/K and the voltage V = R·I + K·ω, so each motor draws P = c·ω² with c = R·b²/K² + b. P is convex in
-    ω, so over a lap (Jensen) both motors draw at least 2·c·ω̄²·t, ω̄ the mean motor speed that covers the
-    distance; turning (one wheel faster), speeding up and slip only add. 0.97: the contact patch of a crowned
-    tyre rolls on a slightly smaller radius; 1.3: room for the bends (turning at ±ω) and the launch."""
-    U, I_stall, tau_stall, gear, rpm, R_wheel = 6.0, 0.67, 0.032, 29.86, 720.0, 0.016
+    """Hand calculation from the datasheet (Pololu #2369: 6 V, 0.67 A at stall, 720 rpm and 40 mA no-load, 29.86:1,
+    16 mm wheels) and the gearmotor model (motors.datasheet): R = U/I_stall, K = (U − R·I_0)/ω_nl. At a steady
+    motor speed ω a motor draws at least its no-load current I_0 (its own friction; any load adds current), at
+    V = R·I + K·ω, so P ≥ (R·I_0 + K·|ω|)·I_0. P is convex in ω, so over a lap (Jensen) both motors draw at least
+    2·(R·I_0² + K·I_0·ω̄)·t, ω̄ the mean motor speed that covers the distance; turning (one wheel faster), speeding
+    up and slip only add. 0.97: the contact patch of a crowned tyre rolls on a slightly smaller radius; 1.3: room for
+    the bends (turning at ±ω) and the launch."""
+    U, I_stall, I_0, gear, rpm, R_wheel = 6.0, 0.67, 0.040, 29.86, 720.0, 0.016
     R = U / I_stall
-    K = tau_stall / gear / I_stall
     w_nl = rpm * 2 * np.pi / 60 * gear
-    b = K * (U - K * w_nl) / (R * w_nl)
+    K = (U - R * I_0) / w_nl
     w_mean = distance_m / lap_time_s / R_wheel * gear
-    return 2 * (R * b * b / K / K + b) * w_mean**2 * lap_time_s
+    return 2 * (R * I_0**2 + K * I_0 * w_mean) * lap_time_s
 
 
 @pytest.mark.quick
@@ -253,7 +253,9 @@ def test_cli_lap_json_gains_and_recording(tmp_path, capsys):
     assert out["distance_m"] == pytest.approx(DEFAULT_TRACK_LENGTH_M, abs=1e-6)
     assert out["track_length_m"] == pytest.approx(DEFAULT_TRACK_LENGTH_M, abs=1e-6)
     # the energy is the electrical energy the motors drew, recomputed from the trace by Eq. 6
-    assert out["energy_j"] == pytest.approx(electrical_energy_j(twin, lap.trace, lap.lap_time_s), rel=2e-3)
+    # (to 0.02 J: the trace does not show the duties' arrival after each tick's reads and compute, nor their PWM
+    # counts; 0.02 J was the old motor model's 2e-3 of 9 J, and stays the bound now that the lap draws 3.3 J)
+    assert out["energy_j"] == pytest.approx(electrical_energy_j(twin, lap.trace, lap.lap_time_s), abs=0.02)
     # the recording holds that lap: rerun's own reader finds the energy series tick by tick
     check_recording(str(rrd))
     assert not list(tmp_path.glob("*.tmp"))
@@ -320,10 +322,10 @@ def test_a_field_changed_on_the_twin_is_simulated_by_the_next_laps():
     """The batch of a twin is reused between calls; a model-field change in between must reach it."""
     t = DigitalTwin()
     first = run_laps(t, [{}], keep_traces=False)[0]
-    t.set("motion.mu", 0.22)  # the robot slips in the tight bends: a slower lap
-    slow = run_laps(t, [{}], keep_traces=False)[0]
+    t.set("motion.mu", 0.18)  # the robot slips in the tight bends: a slower lap (+0.06 s only at 0.22 since the
+    slow = run_laps(t, [{}], keep_traces=False)[0]  # motors have their datasheet's no-load current: a slower robot)
     assert slow.lap_time_s > first.lap_time_s + 0.1
-    assert slow.lap_time_s == run_laps(DigitalTwin(), [{"motion.mu": 0.22}], keep_traces=False)[0].lap_time_s
+    assert slow.lap_time_s == run_laps(DigitalTwin(), [{"motion.mu": 0.18}], keep_traces=False)[0].lap_time_s
 
 
 @pytest.mark.quick
@@ -362,10 +364,10 @@ RECKLESS = {"control.v_max": 1.2, "control.kb": 1.0, "control.kp": 20.0, "contro
 
 
 def test_stopping_decided_laps_changes_no_result(twin):
-    """Laps whose decision is close (too fast for their steering at μ 0.6: some seeds finish, others circle until
+    """Laps whose decision is close (too fast for their steering at μ 0.63: some seeds finish, others circle until
     the timeout) end the tick they are decided with exactly the results of laps stepped to the end of their chunk;
     a deadline stops a lap undecided past it, and one past the lap's end changes nothing."""
-    laps = [{**RECKLESS, "motion.mu": 0.6}] * 6
+    laps = [{**RECKLESS, "motion.mu": 0.63}] * 6  # (0.6 before the motors had their datasheet's losses)
     stopped = run_laps(twin, laps, seed=list(range(6)), keep_traces=False)
     to_the_end = run_laps(twin, laps, seed=list(range(6)), keep_traces=False, stop_decided=False)
     assert 0 < sum(r.completed for r in stopped) < len(laps)  # the decision is close: the seeds split it

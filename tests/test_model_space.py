@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from line_sensor import SensorArray
+from motors.actuator import read_fields
 from twin import TwinError
 from twin.core import DigitalTwin
 from twin.model import ChangeCost
@@ -86,7 +87,7 @@ def test_field_change_edits_the_model_and_cad_change_rebuilds_it():
     twin.set("motor.R_M", 12.0)
     assert twin.model() is model and twin.rebuilds == 1
     assert model.geom(twin.info.tyre_geoms[0]).friction[0] == 0.55
-    assert model.actuator("left_motor").gainprm[0] == 12.0
+    assert read_fields(model, model.actuator("left_motor").id).R_M == 12.0
     twin.set("cad.L", 0.055)
     rebuilt = twin.model()
     assert twin.rebuilds == 2 and rebuilt is not model

@@ -20,7 +20,8 @@ def motor_values(d: Datasheet, supply_voltage: float) -> dict[str, float]:
     """``motor.*`` constants of a datasheet, and ``control.full_speed`` at ``supply_voltage`` [V]."""
     c = d.constants()
     return {"motor.R_M": c.R_M, "motor.L_M": c.L_M, "motor.K": c.K, "motor.b_M": c.b_M, "motor.J_rotor": c.J_rotor,
-            "motor.gear": c.gear, "control.full_speed": c.no_load_speed_wheel(supply_voltage)}
+            "motor.gear": c.gear, "motor.efficiency": c.efficiency, "motor.friction": c.friction,
+            "control.full_speed": c.no_load_speed_wheel(supply_voltage)}
 
 
 def catalogue_motor(name: str) -> Datasheet:

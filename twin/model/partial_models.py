@@ -98,19 +98,25 @@ def motor_model() -> PartialModel:
     m = POLOLU_MP_6V_30_1.constants()
     return PartialModel(
         "motor",
-        "voltage → torque (Eqs. 6–7), both drive motors",
+        "voltage → torque (Eqs. 6–7 with gearbox efficiency and dry friction), both drive motors",
         inputs=(Port("motor_voltage", "V", "left, right"), Port("wheel_speed", "rad/s")),
         outputs=(Port("wheel_torque", "N·m", "left, right"), Port("motor_current", "A", "left, right")),
         parameters=(
             Parameter("R_M", "Ω", m.R_M, 0.1, 1000.0, F, "winding resistance", True),
-            Parameter("L_M", "H", m.L_M, 0.0, 0.1, F, "winding inductance (0 ↔ >0 rebuilds)"),
+            Parameter("L_M", "H", m.L_M, 0.0, 0.1, F, "winding inductance: a lag L_M/R_M of the winding voltage (≈ 56 µs, "
+                      "below the 1 ms step, so not identifiable from a lap; not published, assumed); 0 ↔ >0 rebuilds"),
             Parameter("K", "N·m/A", m.K, 1e-5, 1.0, F, "torque = back-EMF constant", True),
-            Parameter("b_M", "N·m·s/rad", m.b_M, 0.0, 1e-3, F, "viscous friction at the motor shaft"),
+            Parameter("b_M", "N·m·s/rad", m.b_M, 0.0, 1e-3, F, "viscous friction at the motor shaft (datasheet fit: 0)"),
             Parameter("J_rotor", "kg·m²", m.J_rotor, 0.0, 1e-4, F, "rotor inertia"),
             Parameter("gear", "-", m.gear, 1.0, 1000.0, F, "gearbox ratio", True),
+            Parameter("efficiency", "-", m.efficiency, 0.0, 1.0, F,
+                      "gearbox efficiency η: the output torque is G·η·(K·i − τ0); fitted to the stall torque", True),
+            Parameter("friction", "N·m", m.friction, 0.0, 0.01, F,
+                      "no-load friction torque τ0 at the motor shaft (brushes, bearings, gearbox drag; Coulomb); "
+                      "fitted to the no-load current, K·I_0"),
             Parameter("supply_voltage", "V", PhysicsOptions().supply_voltage, 0.5, 24.0, F, "battery voltage, the voltage limit", True),
         ),
-        realised_by="MuJoCo 4 dcmotor actuator (motors.actuator)",
+        realised_by="MuJoCo 4 general actuator (fixed gain, affine bias) + the wheel joint's frictionloss (motors.actuator)",
     )
 
 

@@ -68,6 +68,7 @@ int32_t lf_check(const mjModel *m, const lf_sim *s) {
       !in_range(s->texture_id, m->ntex) || !in_range(s->actuator_left, m->nu) || !in_range(s->actuator_right, m->nu) ||
       !in_range(s->dof_left, m->nv) || !in_range(s->dof_right, m->nv))
     return LF_ERR_ID;
+  if (m->nuser_actuator < 1) return LF_ERR_ID; /* lf_motor_power reads R_M from actuator_user (motors.actuator) */
   /* x, y, arc length per vertex, then the track length; two vertices at least, or the segment walk divides by 0 */
   if (s->centre_count < 2 || s->centre_adr < 0 ||
       (int64_t)s->centre_adr + 3 * (int64_t)s->centre_count + 1 > m->nnumericdata)
@@ -76,12 +77,17 @@ int32_t lf_check(const mjModel *m, const lf_sim *s) {
   return LF_OK;
 }
 
-/* Electrical power drawn by a DC motor, u i (the driver returns nothing to the battery). */
+/* Electrical power drawn by a gearmotor (motors.actuator), u i (the driver returns nothing to the battery): i = (v -
+ * K w_m) / R_M with v the winding voltage (the lagged control with L_M > 0, else the clamped control), w_m the motor
+ * shaft's speed (the actuator's velocity: its gear is the gearbox's), K = -biasprm[2] / gainprm[0] and R_M from
+ * actuator_user[0]. */
 double lf_motor_power(const mjModel *m, const mjData *d, int32_t a) {
-  double current;
-  if (m->actuator_actnum[a] > 0) current = d->act[m->actuator_actadr[a]];
-  else current = d->actuator_force[a] / m->actuator_gainprm[a * mjNGAIN + 1];
-  return fmax(0.0, d->ctrl[a] * current);
+  double u = d->ctrl[a], v, k, current;
+  if (m->actuator_ctrllimited[a]) u = fmin(fmax(u, m->actuator_ctrlrange[2 * a]), m->actuator_ctrlrange[2 * a + 1]);
+  v = m->actuator_actnum[a] > 0 ? d->act[m->actuator_actadr[a]] : u;
+  k = -m->actuator_biasprm[a * mjNBIAS + 2] / m->actuator_gainprm[a * mjNGAIN + 0];
+  current = (v - k * d->actuator_velocity[a]) / m->actuator_user[a * m->nuser_actuator];
+  return fmax(0.0, u * current);
 }
 
 /* The texture as the sensors read it. */
