@@ -138,10 +138,12 @@ def test_variants_never_write_to_the_twin():
     not even for the duration of the batch (another thread may read them)."""
     t = DigitalTwin()
     model = t.model()
-    fields = {f: getattr(model, f).copy() for f in ("geom_friction", "actuator_gainprm", "actuator_dynprm", "actuator_gear")}
+    fields = {f: getattr(model, f).copy() for f in ("geom_friction", "actuator_gainprm", "actuator_biasprm",
+                                                  "actuator_dynprm", "actuator_gear", "actuator_user", "dof_frictionloss")}
     before = dict(t.space.values)
     t.space.values = types.MappingProxyType(before)  # any write to the twin's values raises
-    mixed = run_laps(t, [{"motion.mu": 0.4, "motor.R_M": 10.0, "control.kp": 20.0, "sensor.noise": 0.05}, {}],
+    mixed = run_laps(t, [{"motion.mu": 0.4, "motor.R_M": 10.0, "motor.friction": 2e-4, "control.kp": 20.0,
+                          "sensor.noise": 0.05}, {}],
                      keep_traces=False)
     assert mixed[0].parameters["motor.R_M"] == 10.0 and mixed[1].parameters["motor.R_M"] == before["motor.R_M"]
     assert mixed[0].lap_time_s != mixed[1].lap_time_s
