@@ -25,11 +25,13 @@ class MotorConstants:
       L_M: winding inductance in [H]; its time constant L_M/R_M (≈ 56 µs) is far below the 1 ms step, so a lap
         cannot identify it (see :mod:`motors.actuator`: a lag of the winding voltage, 0 removes the lag's state).
       K: torque constant = back-EMF constant in [N·m/A] = [V·s/rad].
-      b_M: viscous friction at the motor shaft in [N·m·s/rad] (datasheet fits give 0: their losses are η and τ0).
+      b_M: viscous friction at the motor shaft in [N·m·s/rad] (a datasheet fit gives it the viscous share of the
+        no-load friction, :mod:`motors.datasheet`).
       J_rotor: rotor inertia in [kg·m²].
       gear: gearbox ratio G, motor turns per wheel turn [-].
       efficiency: gearbox efficiency η in (0, 1] [-]: a loss proportional to the transmitted torque.
-      friction: no-load friction torque τ0 at the motor shaft in [N·m] (brushes, bearings, gearbox drag): Coulomb.
+      friction: the dry (Coulomb) part τ0 of the no-load friction at the motor shaft in [N·m] (brushes, bearings,
+        gearbox drag).
     """
 
     R_M: float
@@ -68,18 +70,21 @@ class MotorConstants:
 
     def stall_torque_wheel(self, voltage: float) -> float:
         """Output torque in [N·m] where the torque-speed line at ``voltage`` [V] reaches zero speed (a datasheet's
-        stall torque: the dry friction still opposes the last motion)."""
-        return self.gear * self.efficiency * (self.K * voltage / self.R_M - self.friction)
+        stall torque: the dry friction still opposes the last motion); signed as the voltage, 0 inside the dead band
+        |U| ≤ R_M·τ0/K."""
+        magnitude = self.gear * self.efficiency * max(0.0, self.K * abs(voltage) / self.R_M - self.friction)
+        return math.copysign(magnitude, voltage)
 
     def stall_current(self, voltage: float) -> float:
         """Current with the rotor held in [A] at ``voltage`` [V]."""
         return voltage / self.R_M
 
     def no_load_speed_wheel(self, voltage: float) -> float:
-        """Steady wheel speed in free air in [rad/s] at ``voltage`` [V] (0 where the motor cannot break away)."""
+        """Steady wheel speed in free air in [rad/s] at ``voltage`` [V], signed as the voltage (0 where the motor
+        cannot overcome its dry friction)."""
         eta, K, R = self.efficiency, self.K, self.R_M
-        omega_m = eta * (K * voltage / R - self.friction) / (eta * K * K / R + self.b_M)
-        return max(0.0, omega_m) / self.gear
+        omega_m = eta * max(0.0, K * abs(voltage) / R - self.friction) / (eta * K * K / R + self.b_M)
+        return math.copysign(omega_m, voltage) / self.gear
 
     def no_load_current(self, voltage: float) -> float:
         """Steady current with no external load in [A] at ``voltage`` [V]."""

@@ -24,7 +24,7 @@ from twin.fmi import CLOSED_LOOP, PLANT, export_fmu  # noqa: E402
 pytestmark = pytest.mark.skipif(not have_compiler(), reason="exporting an FMU compiles its library (gcc)")
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PY = sys.executable
-STOP = 15.0  # s: the default lap takes ~14.0 s (13.2 s before the motors had their datasheet losses)
+STOP = 15.0  # s: the default lap takes ~13.6 s (13.2 s before the motors had their datasheet losses)
 REL = 1e-12  # the C judge sums progress record by record, the Python judge chunk by chunk: equal to rounding
 
 

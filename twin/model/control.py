@@ -188,8 +188,6 @@ DEFAULTS = {
     "accel_max": 3.0,      # [m/s²] below the ≈ 9 m/s² grip limit at μ = 0.9: launches without wheelspin
     "integral_limit": 0.5, # [rad·s]
     "cal_duty": 0.15,      # Pololu's example turns at 40/400 of full speed while calibrating
-    "cal_sweep": 1.5,      # [rad] nominal sweep each way; the outer sensors need ≈ 0.7 rad at S = 40 mm, and at
-                           # 15 % duty the motors turn at 9.6 % of full speed (they break away only above R·I_0 = 0.36 V),
-                           # so the robot turns ≈ 0.96 rad of the plan's 1.5 (at a 4.8 V battery ≈ 0.64 rad of 1.5)
+    "cal_sweep": 1.0,      # [rad] nominal sweep each way; the outer sensors need ≈ 0.7 rad at S = 40 mm
     "cal_sweeps": 2,
 }

@@ -106,14 +106,14 @@ def motor_model() -> PartialModel:
             Parameter("L_M", "H", m.L_M, 0.0, 0.1, F, "winding inductance: a lag L_M/R_M of the winding voltage (≈ 56 µs, "
                       "below the 1 ms step, so not identifiable from a lap; not published, assumed); 0 ↔ >0 rebuilds"),
             Parameter("K", "N·m/A", m.K, 1e-5, 1.0, F, "torque = back-EMF constant", True),
-            Parameter("b_M", "N·m·s/rad", m.b_M, 0.0, 1e-3, F, "viscous friction at the motor shaft (datasheet fit: 0)"),
+            Parameter("b_M", "N·m·s/rad", m.b_M, 0.0, 1e-3, F, "viscous friction at the motor shaft (datasheet fit: the viscous half of the no-load friction)"),
             Parameter("J_rotor", "kg·m²", m.J_rotor, 0.0, 1e-4, F, "rotor inertia"),
             Parameter("gear", "-", m.gear, 1.0, 1000.0, F, "gearbox ratio", True),
             Parameter("efficiency", "-", m.efficiency, 0.0, 1.0, F,
                       "gearbox efficiency η: the output torque is G·η·(K·i − τ0); fitted to the stall torque", True),
             Parameter("friction", "N·m", m.friction, 0.0, 0.01, F,
-                      "no-load friction torque τ0 at the motor shaft (brushes, bearings, gearbox drag; Coulomb); "
-                      "fitted to the no-load current, K·I_0"),
+                      "dry (Coulomb) friction torque τ0 at the motor shaft (brushes, bearings, gearbox drag); "
+                      "datasheet fit: half of the no-load current's torque K·I_0"),
             Parameter("supply_voltage", "V", PhysicsOptions().supply_voltage, 0.5, 24.0, F, "battery voltage, the voltage limit", True),
         ),
         realised_by="MuJoCo 4 general actuator (fixed gain, affine bias) + the wheel joint's frictionloss (motors.actuator)",
