@@ -221,18 +221,25 @@ DEFAULT_TRACK_LENGTH_M = 2.7 + math.pi * (0.5 + 0.25 + 0.15 + 0.15 + 0.3 + 0.4) 
 
 def electrical_energy_j(twin: DigitalTwin, trace, t_end: float) -> float:
     """∫ U·I dt over [0, t_end] for both motors, from a lap's trace and Eq. 6 alone (not the C loop's integral).
-    The firmware writes each voltage U once per control tick and it holds until the next; the current settles
+    The firmware writes each duty once per control tick and it holds until the next; the current settles
     within L/R = 0.5 mH / 8.96 Ω = 56 µs ≪ Δt = 5 ms, so I = (U − K·ω_m)/R, with ω_m the motor speed (the
-    wheel's times the actuator's signed gear), averaged over the tick. A motor feeding power back (U·I < 0)
-    draws none from the battery."""
+    wheel's times the actuator's signed gear), averaged over the tick. U is the duty (the trace's commanded voltage
+    over the nominal supply) times the supply under that load (twin.model.power, its own closed form, tested by
+    hand in tests/test_power.py). A motor feeding power back (U·I < 0) draws none from the battery."""
     model, t = twin.model(), trace.time_s
     R, K = twin.space.get("motor.R_M"), twin.space.get("motor.K")
+    power = twin.power()
     dt = np.clip(t_end - t[:-1], 0.0, np.diff(t))  # whole ticks, and the part of the last one before t_end
-    total = 0.0
+    duty, emf = [], []
     for motor, u, w in zip(MOTORS, ("u_left_v", "u_right_v"), ("wheel_left_radps", "wheel_right_radps")):
-        U, w_m = trace.column(u)[:-1], model.actuator(motor).gear[0] * trace.column(w)
-        current = (U - K * (w_m[:-1] + w_m[1:]) / 2) / R
-        total += float(np.sum(np.maximum(U * current, 0.0) * dt))
+        w_m = model.actuator(motor).gear[0] * trace.column(w)
+        duty.append(trace.column(u)[:-1] / power.nominal_v)
+        emf.append(K * (w_m[:-1] + w_m[1:]) / 2)
+    bus = np.array([power.bus_voltage(d, e, (R, R))[0] for d, e in zip(zip(*duty), zip(*emf))])
+    total = 0.0
+    for d, e in zip(duty, emf):
+        U = d * bus
+        total += float(np.sum(np.maximum(U * (U - e) / R, 0.0) * dt))
     return total
 
 

@@ -40,7 +40,8 @@ def reference(twin):
 
 
 # model fields (μ; the gearmotor's efficiency and dry friction, which the FMU's C writes as motors.actuator does) and a gain
-CHANGED = {"motion.mu": 0.6, "motor.efficiency": 0.6, "motor.friction": 1.5e-4, "control.kp": 20.0}
+CHANGED = {"motion.mu": 0.6, "motor.efficiency": 0.6, "motor.friction": 1.0e-4, "control.kp": 20.0,
+           "power.source_resistance": 0.5}  # twice the dry friction, four times the source resistance
 
 
 @pytest.fixture(scope="module")

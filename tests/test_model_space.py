@@ -36,6 +36,9 @@ def test_io_relations_are_derived_from_matching_ports():
         ("sensor", "sensor_readings", "timing"),  # the read lasts as long as the slowest line's reading
         ("control", "motor_command", "timing"),  # the firmware's command reaches the motors when the robot's
         ("timing", "motor_voltage", "motor"),    # timing says
+        ("control", "motor_command", "power"),   # the duties and the motors' current load the supply, which
+        ("motor", "motor_current", "power"),     # sags (or a regulator holds it), and the supply under load is
+        ("power", "bus_voltage", "timing"),      # what duty 1 gives when the duties reach the motors
     }
     # the loop is closed: the only input from outside is the track itself
     assert default_space().unconnected_inputs() == [("environment", "track_definition")]

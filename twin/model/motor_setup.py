@@ -38,7 +38,7 @@ def motor_for_robot(twin, supply_voltage: float) -> MotorChoice:
 
 
 def use_motor(twin, d: Datasheet, keep=()) -> None:
-    """Give the twin motor ``d`` at its supply voltage, except for the addresses in ``keep`` (values the user
-    gave, which win)."""
-    supply = twin.space.get("motor.supply_voltage")
+    """Give the twin motor ``d`` at its supply voltage (the regulator's, or the battery's: twin.model.power), except
+    for the addresses in ``keep`` (values the user gave, which win)."""
+    supply = twin.power().nominal_v
     twin.update({a: v for a, v in motor_values(d, supply).items() if a not in keep})

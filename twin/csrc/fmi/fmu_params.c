@@ -92,9 +92,13 @@ int32_t lf_fmu_apply(lf_fmu *f, lf_sim *s) {
     } else if (what == LF_P_MOTION_IMPRATIO) {
       m->opt.impratio = v;
     } else if (what == LF_P_MOTOR_SUPPLY_VOLTAGE) {
-      s->supply_voltage = v;
-      m->actuator_ctrlrange[2 * s->actuator_left] = m->actuator_ctrlrange[2 * s->actuator_right] = -v;
-      m->actuator_ctrlrange[2 * s->actuator_left + 1] = m->actuator_ctrlrange[2 * s->actuator_right + 1] = v;
+      s->power.battery_v = v;
+    } else if (what == LF_P_POWER_SOURCE_RESISTANCE) {
+      s->power.source_ohm = v;
+    } else if (what == LF_P_POWER_REGULATOR_VOLTAGE) {
+      s->power.regulator_v = v;
+    } else if (what == LF_P_POWER_REGULATOR_MIN_INPUT) {
+      s->power.regulator_min_input_v = v;
     } else if (what >= LF_P_SENSOR_APERTURE && what <= LF_P_SENSOR_NOISE) {
       set_sensor(s, what, v);
     } else if (what == LF_P_TIMING_RELEASE) {
@@ -109,6 +113,11 @@ int32_t lf_fmu_apply(lf_fmu *f, lf_sim *s) {
       set_control(s, what, v);
     }
   }
+  /* duty 1 gives the regulator's voltage, or the battery's (twin.model.power.Power.nominal_v); the control clamps there */
+  s->supply_voltage = s->power.regulator_v > 0.0 ? s->power.regulator_v : s->power.battery_v;
+  s->terminal_min_v = s->power.battery_v;
+  m->actuator_ctrlrange[2 * s->actuator_left] = m->actuator_ctrlrange[2 * s->actuator_right] = -s->supply_voltage;
+  m->actuator_ctrlrange[2 * s->actuator_left + 1] = m->actuator_ctrlrange[2 * s->actuator_right + 1] = s->supply_voltage;
   if (nmotor == 8) {
     if ((motor[1] > 0) != (m->actuator_actnum[s->actuator_left] > 0)) {
       lf_fmu_log(f, LF_FMU_ERROR, "motor.L_M: switching between zero and non-zero inductance changes the model's "

@@ -210,6 +210,7 @@ typedef struct lf_avr {
   /* motor drive integrated over the step */
   uint64_t drive_since;
   double drive_now[2], drive_sum[2];
+  double drive_step[2];                      /* the last step's mean drive, left and right, in [-1, 1] */
   uint8_t tccr_seen[2][2];                   /* the motor timers' control registers when the drive was decoded */
   /* CPU time */
   uint64_t busy, busy_tick_start;

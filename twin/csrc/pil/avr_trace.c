@@ -57,8 +57,9 @@ static void record_tick(lf_avr *a, uint64_t step_from_cycle) {
     }
   }
   a->s->ticks++;
-  lf_write_record(a->m, a->d, a->s, mode, a->height0, a->d->ctrl[a->s->actuator_left],
-                  a->d->ctrl[a->s->actuator_right]); /* the step's mean drive */
+  /* the step's mean drive at the nominal supply: the voltages commanded, as the C loop's records keep them */
+  lf_write_record(a->m, a->d, a->s, mode, a->height0, a->drive_step[0] * a->s->supply_voltage,
+                  a->drive_step[1] * a->s->supply_voltage);
 }
 
 void pil_trace_ticks(lf_avr *a, uint64_t step_from_cycle) {
