@@ -30,7 +30,7 @@ from mjcf.track import FloorTexture, Pose2D
 from mjcf.urdf_to_mjcf import RobotInfo, convert
 from line_sensor.geometry import SensorArray
 from motors import MotorConstants
-from motors.actuator import add_dcmotor
+from motors.actuator import add_gearmotor
 
 FLOOR = "floor"
 MOTORS = ("left_motor", "right_motor")
@@ -144,7 +144,7 @@ def build_world(
             geom.type = mujoco.mjtGeom.mjGEOM_ELLIPSOID
             geom.size = [geom.size[0], geom.size[0], geom.size[1]]
     for name, joint, direction in zip(MOTORS, info.wheel_joints, info.wheel_directions):
-        add_dcmotor(spec, name, joint, motor, direction=direction, max_voltage=physics.supply_voltage)
+        add_gearmotor(spec, name, joint, motor, direction=direction, max_voltage=physics.supply_voltage)
     model = _compile(spec, urdf_path)
     key = spec.add_key(name=START_KEY)
     key.qpos = model.qpos0.copy()  # the root's free joint starts at its body pose: the start pose

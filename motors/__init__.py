@@ -1,11 +1,11 @@
-"""DC motor partial model (paper Eqs. 6–7).
+"""DC gearmotor partial model (paper Eqs. 6–7, with a lossy gearbox).
 
-    U = L_M di/dt + R_M i + K θ̇_m          (6)  electrical, at the motor shaft
-    J θ̈_m + b_M θ̇_m = K i                  (7)  mechanical, at the motor shaft
+    U = L_M di/dt + R_M i + K θ̇_m                            (6)  electrical, at the motor shaft
+    τ_wheel = G·η·(K i − τ0 sign θ̇) − G² b_M θ̇ − G² J θ̈       (7)  at the wheel, θ̇ = θ̇_m / G
 
-The wheel turns at θ̇ = θ̇_m / G through a gearbox of ratio G. In simulation the model is MuJoCo 4's
-native ``dcmotor`` actuator (see :mod:`motors.actuator`); :mod:`motors.analytic` is the closed-form
-reference it is tested against.
+fitted to a datasheet's four figures (:mod:`motors.datasheet`). In simulation the model is a MuJoCo 4 general
+actuator plus the wheel joint's dry friction (see :mod:`motors.actuator` for why not the native ``dcmotor``);
+:mod:`motors.analytic` holds the closed forms it is tested against.
 """
 
 from motors.constants import MotorConstants, MotorError

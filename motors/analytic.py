@@ -1,12 +1,18 @@
-"""Closed-form solution of Eqs. 6–7 for a voltage step: the reference the simulation is tested against.
+"""Closed forms of the gearmotor model: the references the MuJoCo actuator is tested against.
 
-State x = (i, ω_m): current in [A] and motor-shaft speed in [rad/s]. With a constant voltage U the
-system is linear, x' = A x + B U, and its solution is exact:
+Datasheet points (steady state, :class:`motors.constants.MotorConstants`): no-load speed and current, stall torque
+(where the torque-speed line reaches zero speed) and stall current.
 
-    x(t) = x_ss + exp(A t) (x_0 − x_ss),    x_ss = −A⁻¹ B U,
+Voltage step from rest, with everything referred to the motor shaft (J = J_rotor + J_load/G², b = b_M + b_load/G²)
+and the winding voltage v lagging the applied U by τ_e = L_M/R_M (:mod:`motors.actuator`):
 
-with exp(A t) of the 2×2 matrix written out through its eigenvalues (Sylvester's formula), so no
-numerical integration is involved. With L_M = 0 the current is algebraic and the speed is first order.
+    τ_e v' = U − v,    J ω' = η·K/R·(v − K·ω) − η·τ0 − b·ω,    i = (v − K·ω)/R
+
+Once the rotor turns forward the dry friction is a constant torque, so the system is linear with a constant input,
+x' = A x + c, and its solution x(t) = x_ss + exp(A t)(x_0 − x_ss) is exact, with exp(A t) of the 2×2 matrix written
+out through its eigenvalues (Sylvester's formula); no numerical integration is involved. With L_M = 0, v = U and
+the speed is first order. Valid while the motor's torque exceeds its friction from the first instant (U/R > τ0/K,
+the no-load current: every motor at its rated voltage).
 """
 
 from __future__ import annotations
@@ -41,8 +47,8 @@ def free_air_step(
     """Current and wheel speed after a voltage step at t = 0 from rest.
 
     Args:
-      motor: constants of Eqs. 6–7.
-      voltage: step voltage U in [V].
+      motor: the motor's constants.
+      voltage: step voltage U in [V], above the no-load current's R·I_0 (the rotor breaks away at once).
       t: times in [s], shape (n,).
       load_inertia: inertia on the wheel side (wheel about its axle) in [kg·m²].
       load_damping: viscous damping on the wheel side in [N·m·s/rad].
@@ -50,18 +56,19 @@ def free_air_step(
     Returns:
       (current in [A], wheel speed θ̇ = ω_m / G in [rad/s]), each of shape (n,).
     """
-    G = motor.gear
+    G, eta = motor.gear, motor.efficiency
     J = motor.J_rotor + load_inertia / G**2  # everything referred to the motor shaft
     b = motor.b_M + load_damping / G**2
-    R, K, L = motor.R_M, motor.K, motor.L_M
+    R, K, tau_e = motor.R_M, motor.K, motor.electrical_time_constant_s
+    drive = eta * K / R  # [N·m/V] motor torque per winding volt
+    slope = eta * K * K / R + b  # [N·m·s/rad] torque lost per motor-shaft speed
     t = np.asarray(t, dtype=float)
-    omega_ss = K * voltage / (K * K + R * b)
-    i_ss = (voltage - K * omega_ss) / R
-    if L == 0.0:
-        tau = J * R / (K * K + R * b)
-        omega = omega_ss * (1.0 - np.exp(-t / tau))
+    omega_ss = (drive * voltage - eta * motor.friction) / slope
+    if tau_e == 0.0:
+        omega = omega_ss * (1.0 - np.exp(-t * slope / J))
         return (voltage - K * omega) / R, omega / G
-    A = np.array([[-R / L, -K / L], [K / J, -b / J]])
-    x0_minus_ss = np.array([-i_ss, -omega_ss])
-    x = np.array([i_ss, omega_ss]) + _expm2(A, t) @ x0_minus_ss
-    return x[:, 0], x[:, 1] / G
+    A = np.array([[-1.0 / tau_e, 0.0], [drive / J, -slope / J]])
+    x_ss = np.array([voltage, omega_ss])
+    x = x_ss + _expm2(A, t) @ (np.zeros(2) - x_ss)
+    v, omega = x[:, 0], x[:, 1]
+    return (v - K * omega) / R, omega / G

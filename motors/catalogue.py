@@ -7,7 +7,15 @@ the LP rows are Pololu's datasheet (Rev 2.0, May 2018); the MP, HP and HPCB rows
 pages as quoted by third-party copies (this machine cannot reach pololu.com), so they are as good as those copies.
 Left out: LP 10:1 (its printed stall torque × no-load speed exceeds U × I_stall, which no DC motor can do; the
 datasheet row has no column header there), and rows whose speed, stall torque or stall current were not found
-(HP 10:1, 75:1, 150:1; MP 10:1, 150:1; HPCB 100:1). A missing no-load current is None (it is informative only).
+(HP 10:1, 75:1, 150:1; MP 10:1, 150:1; HPCB 100:1).
+
+Every entry fits the model of :mod:`motors.datasheet` exactly: its gearbox efficiency comes out between 0.51
+(LP 100:1) and 0.79 (the 3pi's), its K positive, so no entry's figures contradict each other (LP 10:1, left out
+above, is the one that would). The fit needs a no-load current; HP 50:1 and HP 100:1 have none on the copies
+read here. The rule: a ratio without one takes its motor family's published no-load current
+(``FAMILY_NO_LOAD_CURRENT``: the no-load current is mostly the motor's own drag, and within a family it barely
+moves with the ratio: LP 20 mA at every ratio here, MP 70 mA at 50:1 to 100:1, HPCB 150 mA at 30:1 to 75:1), here
+HP 30:1's 0.1 A; the entry's source says so, and ``no_load_current_assumed`` marks it.
 The 15:1 HPCB row is Pololu's own 3pi+ 32U4 User's Guide (the Hyper Edition's motor), read here; ``pololu-3pi-30``
 is the original 3pi's motor as the 3pi Robot User's Guide tabulates it (at its 9.25 V motor supply).
 
@@ -23,10 +31,18 @@ KG_MM = 9.80665e-3  # [N·m] per [kg·mm]
 OZ_IN = 0.00706155183333  # [N·m] per [oz·in]
 
 
+FAMILY_NO_LOAD_CURRENT = {"HP": 0.1}  # [A] at 6 V: HP 6V 30:1 (#2212), for HP ratios whose copies print none
+
+
 def _pololu(gear: float, rpm: float, no_load_a: float | None, stall_kg_mm: float, stall_a: float, source: str) -> Datasheet:
+    assumed = no_load_a is None
+    if assumed:
+        family = source.split()[0]
+        no_load_a = FAMILY_NO_LOAD_CURRENT[family]
+        source += f"; no-load current not published there: the {family} family's {no_load_a * 1000:g} mA assumed"
     return Datasheet(voltage=6.0, stall_torque=stall_kg_mm * KG_MM, stall_current=stall_a, no_load_speed=rpm * RPM,
                      no_load_current=no_load_a, gear=gear, inductance=POLOLU_MP_6V_30_1.inductance,
-                     rotor_inertia=POLOLU_MP_6V_30_1.rotor_inertia, source=source)
+                     rotor_inertia=POLOLU_MP_6V_30_1.rotor_inertia, source=source, no_load_current_assumed=assumed)
 
 
 CATALOGUE: dict[str, Datasheet] = {

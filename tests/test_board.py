@@ -115,7 +115,7 @@ def test_pwm_duty_reaches_the_motor_model_wheel_speed(build, duty):
     measured = np.concatenate([tr.column("wheel_left_radps")[window], tr.column("wheel_right_radps")[window]])
     twin = three_pi()
     # inverted fast PWM: a line held at OCR = 0 and the other at OCR = |duty| drive |duty| of 256 counts
-    expected = twin.motor().no_load_speed_wheel(duty / 256 * twin.space.get("motor.supply_voltage"))
+    expected = twin.motor().no_load_speed_wheel(duty / 256 * twin.power().nominal_v)  # the regulated 9.25 V
     assert np.all(np.sign(measured) == np.sign(duty))
     assert np.mean(measured) == pytest.approx(expected, rel=0.05)
     assert np.mean(tr.column("u_left_v")[window]) == pytest.approx(duty / 256 * 9.25, rel=1e-6)
@@ -238,7 +238,8 @@ def test_cli_runs_a_hex_on_the_3pi_and_reports_what_it_showed(build, tmp_path):
 
     doc = json.loads(done.stdout)
     assert doc["completed"] is False and doc["failure"] == "timeout"
-    assert doc["parameters"]["sensor.count"] == 5 and doc["parameters"]["motor.supply_voltage"] == 9.25  # the 3pi
+    assert doc["parameters"]["sensor.count"] == 5 and doc["parameters"]["power.regulator_voltage"] == 9.25  # the 3pi
+    assert doc["parameters"]["motor.supply_voltage"] == 4.8  # its battery: four AAA NiMH cells
     board = doc["board"]
     assert board["format"] == "hex" and " ".join(board["lcd_final"].split()).endswith("t511")
     assert set(board["leds"]) == {"final", "changes", "lit_share"} and board["awake_share"] == 1.0

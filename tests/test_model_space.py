@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from line_sensor import SensorArray
+from motors.actuator import read_fields
 from twin import TwinError
 from twin.core import DigitalTwin
 from twin.model import ChangeCost
@@ -35,6 +36,9 @@ def test_io_relations_are_derived_from_matching_ports():
         ("sensor", "sensor_readings", "timing"),  # the read lasts as long as the slowest line's reading
         ("control", "motor_command", "timing"),  # the firmware's command reaches the motors when the robot's
         ("timing", "motor_voltage", "motor"),    # timing says
+        ("control", "motor_command", "power"),   # the duties and the motors' current load the supply, which
+        ("motor", "motor_current", "power"),     # sags (or a regulator holds it), and the supply under load is
+        ("power", "bus_voltage", "timing"),      # what duty 1 gives when the duties reach the motors
     }
     # the loop is closed: the only input from outside is the track itself
     assert default_space().unconnected_inputs() == [("environment", "track_definition")]
@@ -86,7 +90,7 @@ def test_field_change_edits_the_model_and_cad_change_rebuilds_it():
     twin.set("motor.R_M", 12.0)
     assert twin.model() is model and twin.rebuilds == 1
     assert model.geom(twin.info.tyre_geoms[0]).friction[0] == 0.55
-    assert model.actuator("left_motor").gainprm[0] == 12.0
+    assert read_fields(model, model.actuator("left_motor").id).R_M == 12.0
     twin.set("cad.L", 0.055)
     rebuilt = twin.model()
     assert twin.rebuilds == 2 and rebuilt is not model

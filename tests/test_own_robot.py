@@ -236,7 +236,8 @@ def test_motor_choice_by_hand():
     assert heavy.datasheet.no_load_speed * 0.033 == pytest.approx(1.0, rel=1e-12)
     m = heavy.datasheet.constants()  # a motor the model space accepts
     DigitalTwin().space.update({"motor.R_M": m.R_M, "motor.K": m.K, "motor.b_M": m.b_M, "motor.gear": m.gear,
-                                "motor.L_M": m.L_M, "motor.J_rotor": m.J_rotor})
+                                "motor.L_M": m.L_M, "motor.J_rotor": m.J_rotor, "motor.efficiency": m.efficiency,
+                                "motor.friction": m.friction})
 
 
 def test_a_heavy_robot_gets_a_motor_that_moves_it_and_says_so(tmp_path, third_party_urdf):

@@ -23,6 +23,7 @@ from twin.core.closed_loop import run_laps, setup, start_phase
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.model.control import RUN
+from twin.model.power import Power
 from twin.model.timing import COMPUTE_US, RELEASE_US, Timing, applied_voltages
 
 
@@ -61,7 +62,9 @@ def test_each_physics_step_drives_the_duties_the_robot_would_have_written():
     mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
     timing = Timing(release_us=22.0, compute_us=1500.0)
     params = twin.control_params()
-    sim = setup(data.userdata, model, twin, params, twin.sensor_model(), 3, timing=timing)
+    supply = twin.physics().supply_voltage  # a stiff supply: the power path has its own test (tests/test_power.py)
+    sim = setup(data.userdata, model, twin, params, twin.sensor_model(), 3, timing=timing,
+                power=Power(battery_v=supply, source_ohm=0.0))
     for i in range(params.count):  # as a calibration turn over the line leaves them
         sim.fw.cal_min[i], sim.fw.cal_max[i] = 200, 2300
     start_phase(sim, RUN)
@@ -72,7 +75,6 @@ def test_each_physics_step_drives_the_duties_the_robot_would_have_written():
         seen.append((data.ctrl[left], data.ctrl[right]))
     records = core.records_since(data.userdata, sim, 0)
     assert len(records) == steps // 5
-    supply = twin.physics().supply_voltage
     expected = reference_voltages(records, timing, supply, model.opt.timestep, steps)
     seen = np.array(seen)
     assert np.abs(np.diff(seen, axis=0)).max() > 0.05  # the duties change: the test can tell blends apart

@@ -30,7 +30,7 @@ def evidence(twin: DigitalTwin, seed: int = 1) -> dict:
     tr = r.trace
     if tr is None or len(tr.time_s) < 3:
         return {}
-    supply = twin.space.get("motor.supply_voltage")
+    supply = twin.power().nominal_v  # the voltage duty 1 commands (the trace's u is duty × this)
     full = twin.space.get("control.full_speed")
     radius = twin.info.wheel_radius
     u = np.abs(np.column_stack([tr.column("u_left_v"), tr.column("u_right_v")]))

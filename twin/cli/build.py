@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
             f"at {summary['metres_per_pixel'] * 1000:g} mm/px")
     out.say(f"robot: {summary['robot_mass_kg'] * 1000:.0f} g, R = {info.wheel_radius * 1000:.1f} mm, "
             f"L = {info.half_track * 1000:.1f} mm, wheels {', '.join(info.wheel_joints)}")
-    out.say(f"model: nq={model.nq} nv={model.nv} nu={model.nu} (dcmotor voltage) na={model.na} (motor currents), "
+    out.say(f"model: nq={model.nq} nv={model.nv} nu={model.nu} (motor voltage) na={model.na} (winding voltage lags, L_M > 0), "
             f"timestep {model.opt.timestep * 1000:g} ms")
     for n in info.notes:
         out.say(f"note: {n}")

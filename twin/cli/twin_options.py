@@ -160,7 +160,7 @@ def _choose_motor(twin: DigitalTwin, name: str | None, changes: dict) -> None:
     if name is not None:
         datasheet, why = catalogue_motor(name), f"--motor {name}"
     else:
-        choice = motor_for_robot(twin, twin.space.get("motor.supply_voltage"))
+        choice = motor_for_robot(twin, twin.power().nominal_v)
         datasheet, why = choice.datasheet, f"{choice.name}: {choice.reason}"
     use_motor(twin, datasheet, keep=changes)
     log.warning("motor: %s", why)

@@ -20,6 +20,8 @@ import numpy as np
 
 from line_sensor.working_range import span_us
 from mjcf.track import GROUND_GREY, LINE_GREY
+from mjcf.world import MOTORS
+from motors.actuator import USER_JOINT_FRICTION
 from twin.model.control import calibration_ticks
 
 
@@ -54,7 +56,8 @@ def wheel_braking(twin, wheel_speed_radps: float) -> str:
     model = twin.model()
     dofs = [model.jnt_dofadr[model.joint(j).id] for j in twin.info.wheel_joints]
     damping = max(float(model.dof_damping[d]) for d in dofs)
-    friction = max(float(model.dof_frictionloss[d]) for d in dofs)
+    # the joints' friction loss also holds the motors' own dry friction (motors.actuator): only the description's
+    friction = max(float(model.actuator_user[model.actuator(a).id, USER_JOINT_FRICTION]) for a in MOTORS)
     if damping <= 0 and friction <= 0:
         return ""
     stall = twin.motor().stall_torque_wheel(twin.physics().supply_voltage)

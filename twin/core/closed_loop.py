@@ -38,6 +38,8 @@ from mjcf.world import AXLE_SITE, LINE_SENSOR, MOTORS, START_KEY, PhysicsOptions
 from twin.core import native as core
 from twin.core.calibration import range_too_small, turn_too_long
 from twin.model.control import CALIBRATE, IDLE, RUN, ControlParams, calibration_ticks
+from twin.core.power_failure import does_not_start, shut_off
+from twin.model.power import Power
 from twin.model.timing import Timing
 from twin.core.digital_twin import CENTRE_LINE, DigitalTwin, apply_fields
 from twin.errors import TwinError
@@ -108,6 +110,7 @@ def run_laps(
     core.install_callback()
     fleet = Fleet(twin, model, _batch(twin, model, laps, nthread), laps, seeds, limits, keep_traces, stop_decided)
     _refuse_long_turns(fleet, limits)
+    _refuse_dead_supplies(fleet)
     keys = [lap.calibration_key(s) for lap, s in zip(laps, seeds)]
     turns = twin.calibrations.of(twin.rebuilds) if reuse_calibration else {}
     failed = _calibrate(fleet, keys, turns)
@@ -173,9 +176,13 @@ class Fleet:
                           self.limits, self.twin.track.length_m)
 
     def result(self, i: int) -> LapResult:
-        """Lap i's result, once it has ended (made once)."""
+        """Lap i's result, once it has ended (made once); a lap whose regulator shut off ends as ``power``."""
         if i not in self.results:
-            self.results[i] = self.judges[i].result(self.laps[i].params.count, *self.cal[i], self.laps[i].values)
+            r = self.judges[i].result(self.laps[i].params.count, *self.cal[i], self.laps[i].values)
+            if self.sims[i].power_off and not r.completed:
+                r = dataclasses.replace(r, failure=Outcome.POWER.value,
+                                        detail=f"{shut_off(self.laps[i].power, self.sims[i])}; then: {r.detail}")
+            self.results[i] = r
         return self.results[i]
 
     def progress(self) -> list[Progress]:
@@ -216,7 +223,7 @@ class Fleet:
         self.batch.reset(keyframe=np.full(len(self.laps), self.model.key(START_KEY).id), stage=mujoco.mjtStage.mjSTAGE_NONE)
         rows = self.batch.userdata  # (nsim, nuserdata), live view of the state rows
         self.sims = [setup(rows[i], self.model, self.twin, lap.params, lap.sensor, self.seeds[i], lap.physics,
-                           lap.timing)
+                           lap.timing, lap.power)
                      for i, lap in enumerate(self.laps)]
 
     def step(self, ids: np.ndarray, nstep: int, rollout: bool = False) -> None:
@@ -261,11 +268,12 @@ class Fleet:
 
 
 def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: ControlParams, sensor, seed: int,
-          physics: PhysicsOptions | None = None, timing: Timing | None = None) -> core.Sim:
+          physics: PhysicsOptions | None = None, timing: Timing | None = None, power: Power | None = None) -> core.Sim:
     """Write one simulation's userdata head: where to find things in the model, and what to run.
 
     ``physics``: the lap's own battery voltage (PWM duty 1 → this voltage) and timestep; default the model's,
-    which are the twin's base values, not a batch variant's. ``timing``: the robot's reaction (default the twin's)."""
+    which are the twin's base values, not a batch variant's. ``timing``: the robot's reaction, ``power``: the motors'
+    supply (default the twin's)."""
     row[:] = 0.0
     sim = core.sim_view(row)
     sim.magic, sim.layout_version, sim.nsensor = core.MAGIC, core.LAYOUT_VERSION, params.count
@@ -289,6 +297,9 @@ def setup(row: np.ndarray, model: mujoco.MjModel, twin: DigitalTwin, params: Con
     sim.sensor = core.sensor_to_c(sensor)
     sim.firmware = core.params_to_c(params)
     sim.timing = core.timing_to_c(timing or twin.timing())
+    power = power or twin.power()
+    sim.power = core.power_to_c(power)
+    sim.terminal_min_v, sim.power_off = power.battery_v, 0
     sim.seed = (int(seed) * SEED_SALT + 1) & SEED_MAX
     core.lib.lf_calibrate_reset(ctypes.byref(sim.fw), int(sensor.timeout_us))
     start_phase(sim, CALIBRATE)
@@ -315,6 +326,13 @@ def _refuse_long_turns(fleet: Fleet, limits: LapLimits) -> None:
             judge.fail(Outcome.CALIBRATION, why, 0.0, 0.0)
 
 
+def _refuse_dead_supplies(fleet: Fleet) -> None:
+    """End, before any simulation, the laps whose regulator would not start on their battery."""
+    for lap, judge in zip(fleet.laps, fleet.judges):
+        if why := does_not_start(lap.power):
+            judge.fail(Outcome.POWER, why, 0.0, 0.0)
+
+
 def _calibrate(fleet: Fleet, keys: list[tuple], turns: dict) -> dict[tuple, tuple]:
     """Simulate each distinct turn not in ``turns`` once, add what it calibrated to ``turns``, and leave every
     simulation on the start line. Returns {key: failure outcome} of the turns that failed."""
@@ -337,6 +355,9 @@ def _calibrate(fleet: Fleet, keys: list[tuple], turns: dict) -> dict[tuple, tupl
         s = fleet.sims[i]
         if fleet.judges[i].done:
             failed[k] = fleet.judges[i].outcome  # not kept: every lap with this turn fails alike
+        elif s.power_off:
+            failed[k] = (Outcome.POWER, f"{shut_off(fleet.laps[i].power, s)} during the calibration turn",
+                         float(fleet.batch.time[i]), 0.0, 0.0)
         elif s.fw.mode != IDLE:
             raise TwinError(f"lap {i}: calibration did not finish in {(calibration_ticks(fleet.laps[i].params) + 2) * fleet.steps[i]} steps")
         else:

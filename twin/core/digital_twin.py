@@ -39,6 +39,7 @@ from twin.core.lap import LapLimits
 from twin.core.lap_cache import BatchCache, CalibrationCache
 from twin.model.space import ChangeCost, ModelSpace
 from twin.model.partial_models import default_space
+from twin.model.power import Power
 from twin.model.timing import Timing
 
 log = logging.getLogger(__name__)
@@ -184,6 +185,12 @@ class DigitalTwin:
         v = self._values("timing", values)
         return Timing(release_us=v["release"], compute_us=v["compute"], pwm_counts=int(v["pwm_counts"]))
 
+    def power(self, values: Mapping[str, float] | None = None) -> Power:
+        """The motor driver's supply of the twin's values, or of ``values`` (every address)."""
+        v = self._values("power", values)
+        return Power(battery_v=self._all(values)["motor.supply_voltage"], source_ohm=v["source_resistance"],
+                     regulator_v=v["regulator_voltage"], regulator_min_input_v=v["regulator_min_input"])
+
     def control_params(self, values: Mapping[str, float] | None = None) -> ControlParams:
         """The firmware's parameters: gains from ``control.*`` of the twin's values or of ``values`` (every
         address), geometry measured on the built robot."""
@@ -203,11 +210,12 @@ class DigitalTwin:
         )
 
     def physics(self, values: Mapping[str, float] | None = None) -> PhysicsOptions:
-        """The physics options of the twin's values, or of ``values`` (every address)."""
+        """The physics options of the twin's values, or of ``values`` (every address); their supply voltage is the
+        nominal one PWM duty 1 gives (the regulator's, or the battery's: :attr:`Power.nominal_v`)."""
         v = self._values("motion", values)
         return PhysicsOptions(
             timestep=v["timestep"], tyre_mu=v["mu"], floor_mu=v["floor_mu"],
-            supply_voltage=self._all(values)["motor.supply_voltage"], impratio=v["impratio"],
+            supply_voltage=self.power(values).nominal_v, impratio=v["impratio"],
         )
 
     # --- building

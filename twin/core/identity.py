@@ -10,7 +10,8 @@ import os
 from typing import Mapping
 
 # the motor's own constants (the battery, motor.supply_voltage, is a condition the gains must survive, not the motor)
-MOTOR = ("motor.R_M", "motor.K", "motor.L_M", "motor.b_M", "motor.J_rotor", "motor.gear")
+MOTOR = ("motor.R_M", "motor.K", "motor.L_M", "motor.b_M", "motor.J_rotor", "motor.gear", "motor.efficiency",
+         "motor.friction")
 REL_TOL = 1e-6  # values read back from JSON are the same to far better than this
 
 

@@ -27,7 +27,7 @@ from twin.core.outcomes import REFUSALS, c_names
 from twin.errors import TwinError
 
 MAGIC = 1279676025.0
-LAYOUT_VERSION = 8
+LAYOUT_VERSION = 9
 # the model sizes a head is written for, in the order of model_signature() in mujoco_glue.c
 SIGNATURE = ("nbody", "nsite", "ntex", "ntexdata", "nu", "na", "nv", "nnumericdata")
 
@@ -103,6 +103,13 @@ class TimingC(ctypes.Structure):
     _fields_ = [("release_us", c_double), ("compute_us", c_double), ("pwm_counts", c_double)]
 
 
+class PowerC(ctypes.Structure):
+    """``lf_power``: see :class:`twin.model.power.Power`."""
+
+    _fields_ = [("battery_v", c_double), ("source_ohm", c_double), ("regulator_v", c_double),
+                ("regulator_min_input_v", c_double)]
+
+
 class Sim(ctypes.Structure):
     """``lf_sim``: the head of one simulation's userdata; trace records follow it."""
 
@@ -123,6 +130,7 @@ class Sim(ctypes.Structure):
         ("judge_on", c_int32), ("stop_raised", c_int32), ("deadline_s", c_double), ("judge", JudgeC),
         ("timing", TimingC), ("duty_now", c_double * 2), ("duty_next", c_double * 2), ("apply_time_s", c_double),
         ("pending", c_int32), ("pad", c_int32), ("reads", c_int64),
+        ("power", PowerC), ("terminal_min_v", c_double), ("power_off", c_int32), ("pad_power", c_int32),
     ]
 
 
@@ -156,7 +164,8 @@ def mirrors() -> dict[str, dict[str, tuple[int, int]]]:
     out = {c: {f[0]: (getattr(cls, f[0]).offset, getattr(cls, f[0]).size) for f in cls._fields_}
            for c, cls in (("lf_sim", Sim), ("lf_params", Params), ("lf_state", FwState),
                           ("lf_sensor_model", SensorModelC), ("lf_texture", Texture), ("lf_lap_limits", LapLimitsC),
-                          ("lf_judge", JudgeC), ("lf_timing", TimingC))}
+                          ("lf_judge", JudgeC), ("lf_timing", TimingC),
+                          ("lf_power", PowerC))}
     out["lf_record"] = {name: (8 * i, 8) for i, name in enumerate(RECORD_FIELDS)}
     out["lf_record"].update(raw_us=(8 * RAW_COLUMN, 8 * MAX_SENSORS), calibrated=(8 * CALIBRATED_COLUMN, 8 * MAX_SENSORS))
     return out
@@ -378,6 +387,12 @@ def params_to_c(p) -> Params:
 def timing_to_c(t) -> TimingC:
     """A :class:`twin.model.timing.Timing` as ``lf_timing``."""
     return TimingC(release_us=t.release_us, compute_us=t.compute_us, pwm_counts=t.pwm_counts)
+
+
+def power_to_c(p) -> PowerC:
+    """A :class:`twin.model.power.Power` as ``lf_power``."""
+    return PowerC(battery_v=p.battery_v, source_ohm=p.source_ohm, regulator_v=p.regulator_v,
+                  regulator_min_input_v=p.regulator_min_input_v)
 
 
 def sensor_to_c(s) -> SensorModelC:

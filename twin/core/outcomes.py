@@ -59,6 +59,7 @@ class Outcome(str, enum.Enum):
     CALIBRATION = "calibration"
     REFUSED = "refused"  # the C refused the simulation (a program error, reported as a result)
     FIRMWARE_STALLED = "firmware_stalled"  # the binary in the loop stopped (twin.pil.lap)
+    POWER = "power"  # the motors' supply failed: a regulator that did not start or shut off (twin.model.power)
     STOPPED = "stopped"  # ended undecided by its caller, whom its outcome could no longer matter (run_laps' deadline_s, cut)
 
 

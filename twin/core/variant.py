@@ -13,6 +13,7 @@ from line_sensor.reflectance import SensorModel
 from mjcf.world import PhysicsOptions
 from motors import MotorConstants
 from twin.model.control import ControlParams
+from twin.model.power import Power
 from twin.model.timing import Timing
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
@@ -34,6 +35,7 @@ class Variant:
     motor: MotorConstants
     physics: PhysicsOptions
     timing: Timing
+    power: Power
     field_key: tuple
 
     @classmethod
@@ -50,7 +52,7 @@ class Variant:
             raise TwinError("motor.L_M: switching between zero and non-zero rebuilds the model, so it cannot vary "
                             "between the laps of one batch")
         return cls(values, twin.control_params(values), twin.sensor_model(values), twin.motor(values),
-                   twin.physics(values), twin.timing(values), field_key(twin, values))
+                   twin.physics(values), twin.timing(values), twin.power(values), field_key(twin, values))
 
     def calibration_key(self, seed: int) -> tuple:
         """Everything the calibration turn depends on: physics fields, sensor model, geometry and turn settings,

@@ -44,7 +44,7 @@ def _library() -> ctypes.CDLL:
     lib.lf_external_step.restype = ctypes.c_int32
     lib.lf_external_command.argtypes = [_P, _P, _P, ctypes.c_double, ctypes.c_double, ctypes.c_double]
     lib.lf_external_command.restype = None
-    lib.lf_external_drive.argtypes = [_P, _P]
+    lib.lf_external_drive.argtypes = [_P, _P, _P]
     lib.lf_external_drive.restype = None
     return lib
 BAD = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
@@ -168,7 +168,7 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
                     left, right = (float(np.clip(w / per_volt, -1.0, 1.0)) * supply for w in (left, right))
                 lib.lf_external_command(mp, dp, sp, left, right, h0.value)  # they reach the motors with the robot's timing
                 tick += 1
-            lib.lf_external_drive(dp, sp)
+            lib.lf_external_drive(mp, dp, sp)
             mujoco.mj_step2(model, data)
         core.flush_mujoco_log()
         if _diverged(data):

@@ -20,7 +20,8 @@ def motor_values(d: Datasheet, supply_voltage: float) -> dict[str, float]:
     """``motor.*`` constants of a datasheet, and ``control.full_speed`` at ``supply_voltage`` [V]."""
     c = d.constants()
     return {"motor.R_M": c.R_M, "motor.L_M": c.L_M, "motor.K": c.K, "motor.b_M": c.b_M, "motor.J_rotor": c.J_rotor,
-            "motor.gear": c.gear, "control.full_speed": c.no_load_speed_wheel(supply_voltage)}
+            "motor.gear": c.gear, "motor.efficiency": c.efficiency, "motor.friction": c.friction,
+            "control.full_speed": c.no_load_speed_wheel(supply_voltage)}
 
 
 def catalogue_motor(name: str) -> Datasheet:
@@ -37,7 +38,7 @@ def motor_for_robot(twin, supply_voltage: float) -> MotorChoice:
 
 
 def use_motor(twin, d: Datasheet, keep=()) -> None:
-    """Give the twin motor ``d`` at its supply voltage, except for the addresses in ``keep`` (values the user
-    gave, which win)."""
-    supply = twin.space.get("motor.supply_voltage")
+    """Give the twin motor ``d`` at its supply voltage (the regulator's, or the battery's: twin.model.power), except
+    for the addresses in ``keep`` (values the user gave, which win)."""
+    supply = twin.power().nominal_v
     twin.update({a: v for a, v in motor_values(d, supply).items() if a not in keep})

@@ -15,6 +15,7 @@ from line_sensor.geometry import MAX_SENSORS, SensorArray
 from line_sensor.reflectance import SensorModel
 from motors import POLOLU_MP_6V_30_1
 from twin.model.control import DEFAULTS as CONTROL_DEFAULTS
+from twin.model.power import SOURCE_OHM
 from twin.model.timing import Timing
 from twin.model.space import ChangeCost, ModelSpace, Parameter, PartialModel, Port
 
@@ -98,19 +99,26 @@ def motor_model() -> PartialModel:
     m = POLOLU_MP_6V_30_1.constants()
     return PartialModel(
         "motor",
-        "voltage → torque (Eqs. 6–7), both drive motors",
+        "voltage → torque (Eqs. 6–7 with gearbox efficiency and dry friction), both drive motors",
         inputs=(Port("motor_voltage", "V", "left, right"), Port("wheel_speed", "rad/s")),
         outputs=(Port("wheel_torque", "N·m", "left, right"), Port("motor_current", "A", "left, right")),
         parameters=(
             Parameter("R_M", "Ω", m.R_M, 0.1, 1000.0, F, "winding resistance", True),
-            Parameter("L_M", "H", m.L_M, 0.0, 0.1, F, "winding inductance (0 ↔ >0 rebuilds)"),
+            Parameter("L_M", "H", m.L_M, 0.0, 0.1, F, "winding inductance: a lag L_M/R_M of the winding voltage (≈ 56 µs, "
+                      "below the 1 ms step, so not identifiable from a lap; not published, assumed); 0 ↔ >0 rebuilds"),
             Parameter("K", "N·m/A", m.K, 1e-5, 1.0, F, "torque = back-EMF constant", True),
-            Parameter("b_M", "N·m·s/rad", m.b_M, 0.0, 1e-3, F, "viscous friction at the motor shaft"),
+            Parameter("b_M", "N·m·s/rad", m.b_M, 0.0, 1e-3, F, "viscous friction at the motor shaft (datasheet fit: the viscous half of the no-load friction)"),
             Parameter("J_rotor", "kg·m²", m.J_rotor, 0.0, 1e-4, F, "rotor inertia"),
             Parameter("gear", "-", m.gear, 1.0, 1000.0, F, "gearbox ratio", True),
-            Parameter("supply_voltage", "V", PhysicsOptions().supply_voltage, 0.5, 24.0, F, "battery voltage, the voltage limit", True),
+            Parameter("efficiency", "-", m.efficiency, 0.0, 1.0, F,
+                      "gearbox efficiency η: the output torque is G·η·(K·i − τ0); fitted to the stall torque", True),
+            Parameter("friction", "N·m", m.friction, 0.0, 0.01, F,
+                      "dry (Coulomb) friction torque τ0 at the motor shaft (brushes, bearings, gearbox drag); "
+                      "datasheet fit: half of the no-load current's torque K·I_0"),
+            Parameter("supply_voltage", "V", PhysicsOptions().supply_voltage, 0.5, 24.0, F,
+                      "the battery's open-circuit voltage (the motors' supply without a regulator: power.*)", True),
         ),
-        realised_by="MuJoCo 4 dcmotor actuator (motors.actuator)",
+        realised_by="MuJoCo 4 general actuator (fixed gain, affine bias) + the wheel joint's frictionloss (motors.actuator)",
     )
 
 
@@ -167,7 +175,7 @@ def timing_model() -> PartialModel:
     return PartialModel(
         "timing",
         "when the motors take the duties a control tick decides: release, the read (physics), compute",
-        inputs=(Port("motor_command", "V"), Port("sensor_readings", "µs")),
+        inputs=(Port("motor_command", "V"), Port("sensor_readings", "µs"), Port("bus_voltage", "V")),
         outputs=(Port("motor_voltage", "V", "left, right: the commands as the motors see them, a reaction time after "
                       "each tick, at the PWM's whole counts"),),
         parameters=(
@@ -182,18 +190,39 @@ def timing_model() -> PartialModel:
     )
 
 
+def power_model() -> PartialModel:
+    return PartialModel(
+        "power",
+        "battery → the motor driver's supply: the cells' internal resistance, or a boost regulator (twin.model.power)",
+        inputs=(Port("motor_command", "V", "left, right: the duties, as voltages at the nominal supply"),
+                Port("motor_current", "A", "left, right")),
+        outputs=(Port("bus_voltage", "V", "the H-bridges' supply under load; 0 once a regulator shut off"),),
+        parameters=(
+            Parameter("source_resistance", "Ω", SOURCE_OHM, 0.0, 100.0, F, "between the cells and the H-bridges: "
+                      "4 × 30 mΩ, Panasonic HHR70AAAJ (AAA NiMH) at 1 kHz, charged; more as they discharge"),
+            Parameter("regulator_voltage", "V", 0.0, 0.0, 48.0, F, "boost regulator output for the motors (the "
+                      "3pi: 9.25 V); 0: the motors run from the battery"),
+            Parameter("regulator_min_input", "V", 0.0, 0.0, 48.0, F, "the regulator's lowest battery voltage; "
+                      "below it shuts off for the rest of the run (the 3pi: 3.5 V)"),
+        ),
+        realised_by="twin/csrc/sim/mujoco_glue.c (lf_bus_voltage; reference: twin.model.power)",
+    )
+
+
 INFLUENCES = (
     ("cad", "motion", "L, R, masses, inertias and d are parameters of Eqs. 4–5: the world is rebuilt"),
     ("environment", "motion", "the floor texture and its extent are part of the simulated world: rebuilt"),
     ("motor", "motion", "rotor inertia and gearbox losses add to the wheels' inertia and damping"),
     ("cad", "sensor", "S and the sensor height place the rays; R and L set the firmware's wheel geometry"),
     ("motor", "control", "no-load speed at the supply voltage maps wheel speed to PWM duty"),
+    ("power", "motor", "the H-bridges' supply, sagging with the motors' current, or regulated"),
 )
 
 
 def default_space() -> ModelSpace:
     """The model space with every partial model at its default values."""
     return ModelSpace(
-        [cad_model(), environment_model(), motion_model(), motor_model(), sensor_model(), control_model(), timing_model()],
+        [cad_model(), environment_model(), motion_model(), motor_model(), sensor_model(), control_model(), timing_model(),
+         power_model()],
         INFLUENCES
     )

@@ -2,7 +2,8 @@
 Pololu 3pi, the robot libpololu-avr's 3pi programs are written for.
 
 Sources: Pololu 3pi Robot User's Guide (https://www.pololu.com/docs/0J21): section 1 (about 9.5 cm across, 83 g without
-batteries, four AAA cells, motors run from a regulated 9.25 V), section 5.c (30:1 micro metal gearmotors, the
+batteries, four AAA cells), section 5.b (the motors run from a 9.25 V boost regulator, the same speed as the
+batteries drop from 5.5 to 3.5 V, then it shuts off), section 5.c (30:1 micro metal gearmotors, the
 catalogue's ``pololu-3pi-30``; wheels of 0.67 in radius; "about 7 oz with batteries"), section 5.d (the reflectance
 sensors are QTR-RC circuits) and Pololu's forum on the 3pi's QTR-RC timing ("3PI vs QTR capacitor values and timing":
 2.2 nF against the QTR-8RC's 10 nF, so its decay times are ~4.5 times shorter). Estimates, not published: the wheel
@@ -20,14 +21,15 @@ from motors.catalogue import CATALOGUE
 from motors.datasheet import Datasheet
 from twin.errors import TwinError
 from twin.model.motor_setup import use_motor
+from twin.model.power import THREE_PI_REGULATOR_MIN_INPUT_V, THREE_PI_REGULATOR_V
 
 OZ = 0.028349523125  # [kg]
 
 
 @dataclasses.dataclass(frozen=True)
 class NamedRobot:
-    """A robot as values at model-space addresses, its motor (a name in the motor catalogue), and its board's battery
-    voltage [V] (what ADC6 reads through the 3pi's divider; the motors run from the supply, ``motor.supply_voltage``)."""
+    """A robot as values at model-space addresses, its motor (a name in the motor catalogue), and its battery's voltage
+    [V] (``motor.supply_voltage``, what ADC6 reads through the 3pi's divider; the motors' supply: twin.model.power)."""
 
     name: str
     description: str
@@ -48,7 +50,8 @@ THREE_PI = NamedRobot(
         "cad.sensor_bar_width": 0.065,
         "sensor.count": 5, "sensor.pitch": 0.012,
         "sensor.t_unit": SensorModel().t_unit_us * 2.2 / 10.0,  # 2.2 nF on the 3pi, 10 nF on a QTR-8RC
-        "motor.supply_voltage": 9.25,
+        "motor.supply_voltage": 4 * 1.2,  # the battery: four AAA NiMH cells; the motors get the regulator's 9.25 V
+        "power.regulator_voltage": THREE_PI_REGULATOR_V, "power.regulator_min_input": THREE_PI_REGULATOR_MIN_INPUT_V,
     },
     motor_model="pololu-3pi-30",
     battery_v=4 * 1.2,  # four AAA NiMH cells

@@ -112,7 +112,7 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
     with Mcu(elf) as mcu:
         mcu.eeprom(fw.config_image(params, sensor.timeout_us, telemetry_every))
         # more than the board's five sensors take the LCD's control lines: the LCD is unplugged (board_3pi.h)
-        mcu.board(params.count <= BOARD_SENSORS, twin.physics().supply_voltage, TRIMMER_V, 0)
+        mcu.board(params.count <= BOARD_SENSORS, lap.power.battery_v, TRIMMER_V, 0)
         sim = place_robot(model, data, twin, lap, seed)
         mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
         steps = max(1, round(CHUNK_S / model.opt.timestep))
@@ -172,7 +172,7 @@ def _reaction_us(status) -> dict[str, float | int]:
 def place_robot(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: Variant, seed: int) -> core.Sim:
     """The robot on the start line at time 0, with a fresh head the glue (not the C callback) owns."""
     mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
-    sim = setup(data.userdata, model, twin, lap.params, lap.sensor, seed, lap.physics)
+    sim = setup(data.userdata, model, twin, lap.params, lap.sensor, seed, lap.physics, lap.timing, lap.power)
     sim.magic = PIL_MAGIC
     return sim
 

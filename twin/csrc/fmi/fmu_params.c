@@ -1,7 +1,7 @@
 /* The FMU's parameters, by model-space address: each one written where the twin writes it.
  *
  * Model fields as twin.core.digital_twin.apply_fields and motors.actuator.write_fields write them (friction of the
- * tyres and the floor, timestep, impratio, the dcmotor fields of both motors, the voltage limit); the sensor model,
+ * tyres and the floor, timestep, impratio, the gearmotor fields of both motors and their wheels' dry friction, the voltage limit); the sensor model,
  * the firmware's parameters and the battery voltage into the head as twin.core.closed_loop.setup writes them. The
  * values are checked here against the ranges of the model space (the exporter copies them into the table), since
  * an FMU's caller is not the twin's Python.
@@ -30,14 +30,19 @@ void lf_fmu_apply_gain(lf_sim *s, int32_t what, double v) {
   }
 }
 
-/* A dcmotor's fields (motors.actuator.write_fields), keeping the gear's sign. */
+/* A gearmotor's fields (motors.actuator.write_fields), keeping the gear's sign. v: R_M, L_M, K, b_M, J_rotor, gear,
+ * efficiency, friction. actuator_user holds R_M and the wheel joint's own dry friction (motors.actuator). */
 static void write_motor(mjModel *m, int32_t a, const double *v) {
-  m->actuator_gainprm[a * mjNGAIN + 0] = v[0]; /* R_M */
-  m->actuator_gainprm[a * mjNGAIN + 1] = v[2]; /* K */
-  if (m->actuator_actnum[a] > 0) m->actuator_dynprm[a * mjNDYN + 0] = v[1] / v[0]; /* L_M / R_M */
+  double *user = m->actuator_user + a * m->nuser_actuator;
+  int32_t dof = m->jnt_dofadr[m->actuator_trnid[2 * a]];
+  m->actuator_gainprm[a * mjNGAIN + 0] = v[6] * v[2] / v[0];         /* η K / R */
+  m->actuator_biasprm[a * mjNBIAS + 2] = -v[6] * v[2] * v[2] / v[0]; /* -η K² / R */
+  m->actuator_dynprm[a * mjNDYN + 0] = v[1] / v[0];                  /* L_M / R_M */
+  user[0] = v[0];
   m->actuator_gear[a * 6] = (m->actuator_gear[a * 6] < 0 ? -1.0 : 1.0) * v[5];
   m->actuator_armature[a] = v[4];
   m->actuator_damping[a] = v[3];
+  m->dof_frictionloss[dof] = user[1] + v[5] * v[6] * v[7]; /* + G η τ0 */
 }
 
 static void set_sensor(lf_sim *s, int32_t what, double v) {
@@ -68,13 +73,13 @@ static void set_control(lf_sim *s, int32_t what, double v) {
 int32_t lf_fmu_apply(lf_fmu *f, lf_sim *s) {
   const lf_fmu_config *c = f->config;
   mjModel *m = f->m;
-  double motor[6]; /* R_M, L_M, K, b_M, J_rotor, gear */
+  double motor[8]; /* R_M, L_M, K, b_M, J_rotor, gear, efficiency, friction */
   int32_t k, nmotor = 0, i;
   double steps;
   for (k = 0; k < c->nparam; k++) {
     int32_t what = c->params[k].what;
     double v = f->param[k];
-    if (what >= LF_P_MOTOR_R_M && what <= LF_P_MOTOR_GEAR) {
+    if (what >= LF_P_MOTOR_R_M && what <= LF_P_MOTOR_FRICTION) {
       motor[what - LF_P_MOTOR_R_M] = v;
       nmotor++;
     } else if (what == LF_P_MOTION_MU) {
@@ -87,9 +92,13 @@ int32_t lf_fmu_apply(lf_fmu *f, lf_sim *s) {
     } else if (what == LF_P_MOTION_IMPRATIO) {
       m->opt.impratio = v;
     } else if (what == LF_P_MOTOR_SUPPLY_VOLTAGE) {
-      s->supply_voltage = v;
-      m->actuator_ctrlrange[2 * s->actuator_left] = m->actuator_ctrlrange[2 * s->actuator_right] = -v;
-      m->actuator_ctrlrange[2 * s->actuator_left + 1] = m->actuator_ctrlrange[2 * s->actuator_right + 1] = v;
+      s->power.battery_v = v;
+    } else if (what == LF_P_POWER_SOURCE_RESISTANCE) {
+      s->power.source_ohm = v;
+    } else if (what == LF_P_POWER_REGULATOR_VOLTAGE) {
+      s->power.regulator_v = v;
+    } else if (what == LF_P_POWER_REGULATOR_MIN_INPUT) {
+      s->power.regulator_min_input_v = v;
     } else if (what >= LF_P_SENSOR_APERTURE && what <= LF_P_SENSOR_NOISE) {
       set_sensor(s, what, v);
     } else if (what == LF_P_TIMING_RELEASE) {
@@ -104,7 +113,12 @@ int32_t lf_fmu_apply(lf_fmu *f, lf_sim *s) {
       set_control(s, what, v);
     }
   }
-  if (nmotor == 6) {
+  /* duty 1 gives the regulator's voltage, or the battery's (twin.model.power.Power.nominal_v); the control clamps there */
+  s->supply_voltage = s->power.regulator_v > 0.0 ? s->power.regulator_v : s->power.battery_v;
+  s->terminal_min_v = s->power.battery_v;
+  m->actuator_ctrlrange[2 * s->actuator_left] = m->actuator_ctrlrange[2 * s->actuator_right] = -s->supply_voltage;
+  m->actuator_ctrlrange[2 * s->actuator_left + 1] = m->actuator_ctrlrange[2 * s->actuator_right + 1] = s->supply_voltage;
+  if (nmotor == 8) {
     if ((motor[1] > 0) != (m->actuator_actnum[s->actuator_left] > 0)) {
       lf_fmu_log(f, LF_FMU_ERROR, "motor.L_M: switching between zero and non-zero inductance changes the model's "
                  "structure; export the FMU again with the value you want");

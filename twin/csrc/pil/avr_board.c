@@ -205,7 +205,8 @@ static void trace_physics(lf_avr *a) {
   memset(&s->fw, 0, sizeof s->fw);
   s->fw.line_seen = 1; /* not the program's: line loss is not judged for a program the twin cannot read */
   for (i = 0; i < s->nsensor; i++) s->raw[i] = (uint16_t)fmin(65535.0, a->physics_us[i] + 0.5);
-  lf_write_record(a->m, a->d, s, 0.0, a->height0, a->d->ctrl[s->actuator_left], a->d->ctrl[s->actuator_right]);
+  lf_write_record(a->m, a->d, s, 0.0, a->height0, a->drive_step[0] * s->supply_voltage,
+                  a->drive_step[1] * s->supply_voltage); /* commanded: the drive at the nominal supply */
   r = (lf_record *)(s + 1) + ((s->records_written - 1) % s->record_capacity);
   dt = r->time_s - b->prev_t;
   if (b->have_prev && dt > 0) {

@@ -206,9 +206,11 @@ typedef struct lf_avr {
   uint64_t stall_cycles;                     /* the watchdog's limit */
   double height0;                            /* sensor 0's height at its last release [m] */
   double physics_us[LF_BOARD_MAX_SENSORS];   /* each line's decay time at its last release [us] */
+  double physics_prev_us[LF_BOARD_MAX_SENSORS]; /* and at the release before: the read a tick traced may be that one */
   /* motor drive integrated over the step */
   uint64_t drive_since;
   double drive_now[2], drive_sum[2];
+  double drive_step[2];                      /* the last step's mean drive, left and right, in [-1, 1] */
   uint8_t tccr_seen[2][2];                   /* the motor timers' control registers when the drive was decoded */
   /* CPU time */
   uint64_t busy, busy_tick_start;
@@ -254,7 +256,7 @@ void pil_led_update(lf_avr *a);      /* a port D line may have changed */
 int32_t pil_drain(void *ring, int32_t *n, size_t size, void *out, int32_t cap); /* events to Python, in order */
 /* avr_trace.c */
 void pil_connect_uart(lf_avr *a);    /* keep the UART's bytes for Python */
-void pil_trace_ticks(lf_avr *a);     /* trace the ticks the twin's firmware finished since the last call */
+void pil_trace_ticks(lf_avr *a, uint64_t step_from_cycle); /* trace the ticks the firmware finished since the last call */
 #pragma GCC visibility pop
 
 /* Python's API (twin.pil.mcu) */

@@ -108,7 +108,7 @@ int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep) {
     pil_drive_end(a, from);
     pil_lcd_step(a);
     pil_board_step(a, from);
-    if (traced(a)) pil_trace_ticks(a);
+    if (traced(a)) pil_trace_ticks(a, from);
     ((step_fn)step2)(m, d);
     power = lf_motor_power(m, d, s->actuator_left) + lf_motor_power(m, d, s->actuator_right);
     s->energy_j += h * power;

@@ -92,11 +92,14 @@ void pil_drive_begin(lf_avr *a) {
 
 void pil_drive_end(lf_avr *a, uint64_t from) {
   int i;
+  double drive[2], bus;
   drive_update(a, 0);
   for (i = 0; i < 2; i++) {
     double span = (double)(a->avr->cycle - from);
-    double drive = span > 0 ? a->drive_sum[i] / span : a->drive_now[i];
-    a->d->ctrl[i == 0 ? a->s->actuator_left : a->s->actuator_right] = drive * a->s->supply_voltage;
-    if (drive != 0.0) a->board.last_drive = a->avr->cycle;
+    drive[i] = a->drive_step[i] = span > 0 ? a->drive_sum[i] / span : a->drive_now[i];
+    if (drive[i] != 0.0) a->board.last_drive = a->avr->cycle;
   }
+  bus = lf_bus_voltage(a->m, a->d, a->s, drive); /* the supply under the step's load, as the C loop's lf_drive */
+  a->d->ctrl[a->s->actuator_left] = drive[0] * bus;
+  a->d->ctrl[a->s->actuator_right] = drive[1] * bus;
 }

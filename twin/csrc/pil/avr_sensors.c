@@ -50,6 +50,7 @@ static void on_direction(struct avr_irq_t *irq, uint32_t value, void *param) {
       if (i == 0) a->height0 = height;
       raw_us = emitters ? a->s->raw[i] : a->s->sensor.timeout_us; /* emitters off: no light comes back */
     }
+    a->physics_prev_us[i] = a->physics_us[i];
     a->physics_us[i] = raw_us;
     pil_timing_release(a, raw_us);
     avr_cycle_timer_register(a->avr, (avr_cycle_count_t)(raw_us * a->f_cpu / 1e6 + 0.5), line_falls, &a->refs[i]);

@@ -29,8 +29,11 @@ int32_t lf_avr_state(const lf_avr *a, lf_state *out) {
   return 0;
 }
 
-/* A tick the firmware finished: trace it from its RAM, count its awake cycles. */
-static void record_tick(lf_avr *a) {
+/* A tick the firmware finished: trace it from its RAM, count its awake cycles. The tick's counter went up within the
+ * step that began at step_from_cycle; a line released in that step belongs to the next read (a read and its
+ * compute take over 1.2 ms, so the tick's own read began in an earlier step): the reading the tick holds is the
+ * release before (the calibration's overrunning ticks start their next read at once). */
+static void record_tick(lf_avr *a, uint64_t step_from_cycle) {
   uint16_t raw[LF_MAX_SENSORS];
   int32_t mode;
   uint64_t busy = a->busy - a->busy_tick_start;
@@ -44,25 +47,27 @@ static void record_tick(lf_avr *a) {
   memcpy(raw, a->avr->data + a->a_raw, sizeof raw);
   memcpy(&mode, a->avr->data + a->a_tick_mode, sizeof mode);
   for (i = 0; i < a->s->nsensor; i++) {
+    double physics_us = a->released[i] >= step_from_cycle ? a->physics_prev_us[i] : a->physics_us[i];
     a->s->raw[i] = raw[i];
-    if (a->physics_us[i] < a->s->sensor.timeout_us) { /* how well the MCU timed a line that fell */
-      double error = raw[i] - a->physics_us[i];
+    if (physics_us < a->s->sensor.timeout_us) { /* how well the MCU timed a line that fell */
+      double error = raw[i] - physics_us;
       if (fabs(error) > a->status.read_error_max_us) a->status.read_error_max_us = fabs(error);
       a->status.read_error_sum_us += error;
       a->status.read_errors++;
     }
   }
   a->s->ticks++;
-  lf_write_record(a->m, a->d, a->s, mode, a->height0, a->d->ctrl[a->s->actuator_left],
-                  a->d->ctrl[a->s->actuator_right]); /* the step's mean drive */
+  /* the step's mean drive at the nominal supply: the voltages commanded, as the C loop's records keep them */
+  lf_write_record(a->m, a->d, a->s, mode, a->height0, a->drive_step[0] * a->s->supply_voltage,
+                  a->drive_step[1] * a->s->supply_voltage);
 }
 
-void pil_trace_ticks(lf_avr *a) {
+void pil_trace_ticks(lf_avr *a, uint64_t step_from_cycle) {
   uint32_t ticks;
   memcpy(&ticks, a->avr->data + a->a_ticks, sizeof ticks);
   while (a->ticks_seen < (int64_t)ticks) { /* at most one per step unless the period is shorter than h */
     a->ticks_seen++;
-    record_tick(a);
+    record_tick(a, step_from_cycle);
   }
 }
 

@@ -32,6 +32,6 @@ void lf_external_command(const mjModel *m, const mjData *d, lf_sim *s, double u_
   lf_write_record(m, d, s, s->fw.mode, height0, u_left_v, u_right_v);
 }
 
-void lf_external_drive(mjData *d, lf_sim *s) {
-  if (s->error == LF_OK) lf_drive(d, s, d->ctrl + s->actuator_left, d->ctrl + s->actuator_right);
+void lf_external_drive(const mjModel *m, mjData *d, lf_sim *s) {
+  if (s->error == LF_OK) lf_drive(m, d, s, d->ctrl + s->actuator_left, d->ctrl + s->actuator_right);
 }

@@ -28,6 +28,6 @@ int32_t lf_external_step(const mjModel *m, mjData *d, lf_sim *s, double *height0
 void lf_external_command(const mjModel *m, const mjData *d, lf_sim *s, double u_left_v, double u_right_v,
                          double height0);
 /* Every step, after lf_external_step: the motors' voltages over the step into d->ctrl (lf_drive). */
-void lf_external_drive(mjData *d, lf_sim *s);
+void lf_external_drive(const mjModel *m, mjData *d, lf_sim *s);
 
 #endif

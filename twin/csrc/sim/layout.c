@@ -21,7 +21,11 @@ static const lf_field fields[] = {
   LF_FIELD(lf_sim, judge_on), LF_FIELD(lf_sim, stop_raised), LF_FIELD(lf_sim, deadline_s),
   LF_FIELD(lf_sim, judge), LF_FIELD(lf_sim, timing), LF_FIELD(lf_sim, duty_now), LF_FIELD(lf_sim, duty_next),
   LF_FIELD(lf_sim, apply_time_s), LF_FIELD(lf_sim, pending), LF_FIELD(lf_sim, pad),
-  LF_FIELD(lf_sim, reads),
+  LF_FIELD(lf_sim, reads), LF_FIELD(lf_sim, power), LF_FIELD(lf_sim, terminal_min_v), LF_FIELD(lf_sim, power_off),
+  LF_FIELD(lf_sim, pad_power),
+
+  LF_FIELD(lf_power, battery_v), LF_FIELD(lf_power, source_ohm), LF_FIELD(lf_power, regulator_v),
+  LF_FIELD(lf_power, regulator_min_input_v),
 
   LF_FIELD(lf_timing, release_us), LF_FIELD(lf_timing, compute_us), LF_FIELD(lf_timing, pwm_counts),
 

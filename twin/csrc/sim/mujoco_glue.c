@@ -68,6 +68,7 @@ int32_t lf_check(const mjModel *m, const lf_sim *s) {
       !in_range(s->texture_id, m->ntex) || !in_range(s->actuator_left, m->nu) || !in_range(s->actuator_right, m->nu) ||
       !in_range(s->dof_left, m->nv) || !in_range(s->dof_right, m->nv))
     return LF_ERR_ID;
+  if (m->nuser_actuator < 1) return LF_ERR_ID; /* lf_motor_power reads R_M from actuator_user (motors.actuator) */
   /* x, y, arc length per vertex, then the track length; two vertices at least, or the segment walk divides by 0 */
   if (s->centre_count < 2 || s->centre_adr < 0 ||
       (int64_t)s->centre_adr + 3 * (int64_t)s->centre_count + 1 > m->nnumericdata)
@@ -76,12 +77,17 @@ int32_t lf_check(const mjModel *m, const lf_sim *s) {
   return LF_OK;
 }
 
-/* Electrical power drawn by a DC motor, u i (the driver returns nothing to the battery). */
+/* Electrical power drawn by a gearmotor (motors.actuator), u i (the driver returns nothing to the battery): i = (v -
+ * K w_m) / R_M with v the winding voltage (the lagged control with L_M > 0, else the clamped control), w_m the motor
+ * shaft's speed (the actuator's velocity: its gear is the gearbox's), K = -biasprm[2] / gainprm[0] and R_M from
+ * actuator_user[0]. */
 double lf_motor_power(const mjModel *m, const mjData *d, int32_t a) {
-  double current;
-  if (m->actuator_actnum[a] > 0) current = d->act[m->actuator_actadr[a]];
-  else current = d->actuator_force[a] / m->actuator_gainprm[a * mjNGAIN + 1];
-  return fmax(0.0, d->ctrl[a] * current);
+  double u = d->ctrl[a], v, k, current;
+  if (m->actuator_ctrllimited[a]) u = fmin(fmax(u, m->actuator_ctrlrange[2 * a]), m->actuator_ctrlrange[2 * a + 1]);
+  v = m->actuator_actnum[a] > 0 ? d->act[m->actuator_actadr[a]] : u;
+  k = -m->actuator_biasprm[a * mjNBIAS + 2] / m->actuator_gainprm[a * mjNGAIN + 0];
+  current = (v - k * d->actuator_velocity[a]) / m->actuator_user[a * m->nuser_actuator];
+  return fmax(0.0, u * current);
 }
 
 /* The texture as the sensors read it. */
@@ -315,23 +321,71 @@ void lf_decide(const mjData *d, lf_sim *s, double duty_left, double duty_right, 
   s->pending = 1;
 }
 
+/* A gearmotor's back-EMF K w_m [V] and winding resistance [ohm] (as lf_motor_power reads them). */
+static double back_emf(const mjModel *m, const mjData *d, int32_t a, double *r_ohm) {
+  *r_ohm = m->actuator_user[a * m->nuser_actuator];
+  return -m->actuator_biasprm[a * mjNBIAS + 2] / m->actuator_gainprm[a * mjNGAIN + 0] * d->actuator_velocity[a];
+}
+
+/* The H-bridges' supply over a step whose mean duties are duty[2] (lf_power; reference: twin.model.power). Each motor
+ * draws duty i from it, i = (duty v - e) / R, when that is positive (the driver returns nothing, as lf_motor_power).
+ * Straight from the battery, v = E - R_s sum(duty i) is linear in v:
+ *   v = (E + R_s sum(duty e / R)) / (1 + R_s sum(duty^2 / R)),
+ * over the motors that draw (a second pass drops one that would feed the battery). Through the boost regulator the
+ * output holds its voltage and the battery gives the power P at a terminal voltage t = E - R_s P / t (no loss in the
+ * regulator assumed: not published), t = (E + sqrt(E^2 - 4 R_s P)) / 2; below the regulator's lowest input (or with no
+ * real t: more power than the battery can give) it shuts off for the rest of the run. */
+double lf_bus_voltage(const mjModel *m, const mjData *d, lf_sim *s, const double duty[2]) {
+  const lf_power *p = &s->power;
+  int32_t motor[2], draws[2] = {1, 1}, j, pass;
+  double e[2], r[2], v = p->battery_v;
+  if (s->power_off) return 0.0;
+  motor[0] = s->actuator_left, motor[1] = s->actuator_right;
+  for (j = 0; j < 2; j++) e[j] = back_emf(m, d, motor[j], &r[j]);
+  if (p->regulator_v > 0.0) {
+    double watts = 0.0, disc, terminal;
+    for (j = 0; j < 2; j++) watts += fmax(0.0, duty[j] * (duty[j] * p->regulator_v - e[j]) / r[j]) * p->regulator_v;
+    disc = p->battery_v * p->battery_v - 4.0 * p->source_ohm * watts;
+    terminal = disc >= 0.0 ? 0.5 * (p->battery_v + sqrt(disc)) : 0.0;
+    s->terminal_min_v = fmin(s->terminal_min_v, terminal);
+    if (terminal < p->regulator_min_input_v) {
+      s->power_off = 1;
+      return 0.0;
+    }
+    return p->regulator_v;
+  }
+  for (pass = 0; pass < 2 && p->source_ohm > 0.0; pass++) {
+    double num = p->battery_v, den = 1.0;
+    int32_t dropped = 0;
+    for (j = 0; j < 2; j++)
+      if (draws[j]) num += p->source_ohm * duty[j] * e[j] / r[j], den += p->source_ohm * duty[j] * duty[j] / r[j];
+    v = num / den;
+    for (j = 0; j < 2; j++)
+      if (draws[j] && duty[j] * (duty[j] * v - e[j]) < 0.0) draws[j] = 0, dropped = 1;
+    if (!dropped) break;
+  }
+  s->terminal_min_v = fmin(s->terminal_min_v, v);
+  return v;
+}
+
 /* The motors' voltages over the step beginning now: the duties in force, blended over the step in which new ones take
- * effect (their mean over the step, as a PWM the MCU rewrites mid-step drives it: twin/csrc/pil/avr_motors.c). */
-void lf_drive(const mjData *d, lf_sim *s, double *u_left_v, double *u_right_v) {
-  double old_share = 0.0; /* of the step still on duty_now */
+ * effect (their mean over the step, as a PWM the MCU rewrites mid-step drives it: twin/csrc/pil/avr_motors.c), times
+ * the supply over the step (lf_bus_voltage). */
+void lf_drive(const mjModel *m, const mjData *d, lf_sim *s, double *u_left_v, double *u_right_v) {
+  double duty[2] = {s->duty_now[0], s->duty_now[1]}, bus;
   if (s->pending) {
-    old_share = (s->apply_time_s - d->time) / s->timestep;
+    double old_share = (s->apply_time_s - d->time) / s->timestep; /* of the step still on duty_now */
     if (old_share < 1.0) {
       old_share = fmax(0.0, old_share);
-      *u_left_v = (old_share * s->duty_now[0] + (1.0 - old_share) * s->duty_next[0]) * s->supply_voltage;
-      *u_right_v = (old_share * s->duty_now[1] + (1.0 - old_share) * s->duty_next[1]) * s->supply_voltage;
+      duty[0] = old_share * s->duty_now[0] + (1.0 - old_share) * s->duty_next[0];
+      duty[1] = old_share * s->duty_now[1] + (1.0 - old_share) * s->duty_next[1];
       s->duty_now[0] = s->duty_next[0], s->duty_now[1] = s->duty_next[1];
       s->pending = 0;
-      return;
     }
   }
-  *u_left_v = s->duty_now[0] * s->supply_voltage;
-  *u_right_v = s->duty_now[1] * s->supply_voltage;
+  bus = lf_bus_voltage(m, d, s, duty);
+  *u_left_v = duty[0] * bus;
+  *u_right_v = duty[1] * bus;
 }
 
 void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
@@ -360,7 +414,7 @@ void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
       }
     }
   }
-  lf_drive(d, s, d->ctrl + s->actuator_left, d->ctrl + s->actuator_right);
+  lf_drive(m, d, s, d->ctrl + s->actuator_left, d->ctrl + s->actuator_right);
 }
 
 void lf_control_callback(const mjModel *m, mjData *d) {

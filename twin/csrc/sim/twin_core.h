@@ -22,7 +22,7 @@
 #include "sensor_physics.h"
 
 #define LF_MAGIC 1279676025.0  /* "LFTy": marks userdata the callback owns; other models are left alone */
-#define LF_LAYOUT_VERSION 8
+#define LF_LAYOUT_VERSION 9
 #define LF_SIGNATURE 8 /* model sizes in lf_sim.model_signature: see model_signature() in mujoco_glue.c */
 
 
@@ -36,6 +36,17 @@ typedef struct {
   double pwm_counts;             /* the PWM period in timer counts: a duty is a whole number of counts, at most one
                                     short of the period (0: any duty) */
 } lf_timing;
+
+/* The motor driver's supply (twin.model.power): a battery, open-circuit battery_v behind source_ohm (internal
+ * resistance, contacts, wiring), feeds the H-bridges directly, or through a boost regulator that holds regulator_v
+ * while the battery's terminal voltage stays at or above regulator_min_input_v and shuts off for the rest of the
+ * run below it (the 3pi: its MCU's 5 V comes from the boosted rail too). */
+typedef struct {
+  double battery_v;              /* open-circuit battery voltage [V] */
+  double source_ohm;             /* resistance between the cells and the H-bridges [ohm] */
+  double regulator_v;            /* boost regulator output [V]; 0: no regulator */
+  double regulator_min_input_v;  /* the regulator's lowest input [V] */
+} lf_power;
 
 /* Per-simulation configuration (written by Python) and state (advanced by the callback). */
 typedef struct {
@@ -55,7 +66,7 @@ typedef struct {
   int32_t centre_adr;            /* numeric_data address of the centre line: x, y, arc length per vertex */
   int32_t centre_count;          /* vertices of the closed centre line */
   double texture_origin_x, texture_origin_y, texture_metres_per_pixel;
-  double supply_voltage;         /* PWM duty 1 -> this voltage [V] */
+  double supply_voltage;         /* PWM duty 1 -> this voltage with no load: the regulator's, or the battery's [V] */
   double timestep;               /* physics step [s], for the control-tick comparison */
   lf_sensor_model sensor;
   lf_params firmware;
@@ -87,6 +98,10 @@ typedef struct {
   int32_t pending;                /* duty_next is waiting for apply_time_s */
   int32_t pad;
   int64_t reads;                  /* readings of every sensor taken in this phase (a calibration tick takes ten) */
+  lf_power power;                 /* the supply (lf_bus_voltage) */
+  double terminal_min_v;          /* the lowest battery terminal voltage of the run [V] */
+  int32_t power_off;              /* the regulator shut off: the motors get nothing for the rest of the run */
+  int32_t pad_power;
 } lf_sim;
 
 /* One field of a mirrored struct, for Python's load-time check: "struct.field", offsetof and sizeof [bytes]. */
@@ -135,7 +150,9 @@ void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *heigh
  * counts; and every step, the voltages the motors see over the step beginning at d->time [V]. */
 double lf_read_time_us(const lf_sim *s, int32_t reads);
 void lf_decide(const mjData *d, lf_sim *s, double duty_left, double duty_right, double read_us);
-void lf_drive(const mjData *d, lf_sim *s, double *u_left_v, double *u_right_v);
+void lf_drive(const mjModel *m, const mjData *d, lf_sim *s, double *u_left_v, double *u_right_v);
+/* The H-bridges' supply over a step whose mean duties are duty[2] (lf_power), with the motors' back-EMF now [V]. */
+double lf_bus_voltage(const mjModel *m, const mjData *d, lf_sim *s, const double duty[2]);
 #endif
 
 #endif

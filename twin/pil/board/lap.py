@@ -30,7 +30,6 @@ from twin.core.maze import judge_for
 from twin.core.outcomes import Outcome
 from twin.core.variant import Variant
 from twin.errors import TwinError
-from twin.model.robots import THREE_PI
 from twin.pil import firmware as fw
 from twin.pil.board.display import BoardLog
 from twin.pil.board.operator import BUTTONS, Operator, Press, Script, Seen
@@ -131,21 +130,21 @@ def run_board_lap(twin: DigitalTwin, program: Program, seed: int = 0, limits: La
                   battery_v: float | None = None, trimmer_v: float = TRIMMER_V) -> tuple[LapResult, BoardReport]:
     """Run ``program`` (any 3pi program, :func:`twin.pil.program.load_program`) on the board in the twin until its lap
     ends (module docstring). ``operator``: who presses the buttons (default :class:`Operator`); ``on_line(t, line)``:
-    each line the program sent on its UART [s since power-up]; ``battery_v``: what ADC6 sees through the 3pi's
-    divider (default: the 3pi's four AAA cells, or the twin's supply for a robot without the 3pi's regulator);
+    each line the program sent on its UART [s since power-up]; ``battery_v``: the battery's open-circuit voltage,
+    which ADC6 sees through the 3pi's divider and which feeds the motors' supply (twin.model.power; default the twin's
+    ``motor.supply_voltage``: the 3pi's four AAA cells);
     ``trimmer_v``: what ADC7 sees from the user trimmer, 0..5 V [V] (default: mid travel)."""
     if not 0.0 <= trimmer_v <= 5.0:
         raise TwinError(f"trimmer_v: the trimmer gives 0..5 V (AVCC), got {trimmer_v!r}")
     check_board(twin)
-    lap = Variant.of(twin, {})
+    lap = Variant.of(twin, {} if battery_v is None else {"motor.supply_voltage": battery_v})
     model = twin.model()
     data = mujoco.MjData(model)
     board_limits = dataclasses.replace(limits, max_line_lost_s=2 * limits.timeout_s + 1)  # not judged: see above
     clock = LapClock(twin, board_limits, keep_trace)
     operator = operator or Operator()
     log, telemetry, presses = BoardLog(fw.F_CPU_HZ), Telemetry(on_line, wire=False), []
-    regulated = twin.space.get("motor.supply_voltage") == THREE_PI.values["motor.supply_voltage"]
-    battery = battery_v if battery_v is not None else THREE_PI.battery_v if regulated else twin.physics().supply_voltage
+    battery = lap.power.battery_v
     steps = max(1, round(CHUNK_S / model.opt.timestep))
     release_at = None
     with Mcu(program) as mcu:
