@@ -35,6 +35,7 @@ FIGURES = {
                      "controller FMU behind its wall"],
     "bench_forecast.py": ["robots (linear", "linear seed 7, lap"],
     "bench_learn.py": ["analysis:"],
+    "bench_motors.py": ["pololu-mp-6v-30", "pololu-3pi-30", "largest error [%]"],
     "bench_pil.py": ["PIL lap", "C lap", "MCU only", "3pi program on the board"],
     "bench_startup.py": ["python -c pass:", "worst:"],
     "bench_step.py": ["serial Python loop", "batch, 1 thread", "batch, all cores", "laps batched"],
