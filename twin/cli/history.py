@@ -132,13 +132,15 @@ def _say(out: Output, e: dict) -> None:
 def _rebuild(args, out: Output) -> int:
     with loading():
         from tuner.history import History, check_db, display, rebuild_log
+        from tuner.history.rebuild import read_log
 
     check_db(args.db)
+    logs = [read_log(path) for path in args.log]  # each refused (live writing it, a journal not its own) before any row
     history = History(args.db)
     done = []
     try:
-        for path in args.log:
-            r = rebuild_log(history, path)
+        for log in logs:
+            r = rebuild_log(history, log)
             done.append(r)
             out.say(f"rebuilt {r['laps']} laps and {r['journal_records']} journaled records of {r['log']} "
                     f"(replacing {r['runs_replaced']} runs) in {display(args.db)}")

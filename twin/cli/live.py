@@ -199,6 +199,7 @@ def _action_printer(out: Output, journal: Journal, rec, actions: list[dict], db:
 def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
     """What the live twin keeps (each lap's twin side, each alignment) to the journal beside the log, and the
     database."""
+    from tuner.history import lap_digest  # (loaded with the journal)
 
     def on_record(r: dict) -> None:
         if r["kind"] == "lap":
@@ -206,7 +207,8 @@ def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
             record = {"kind": "lap", "lap": r["lap"], "time": round(time.time(), 3), "robot": r["robot"],
                       "gains_seq": r["gains_seq"], "robot_lap_time_s": r["robot_lap_time_s"],
                       "twin_lap_time_s": r["twin_lap_time_s"], "discrepancy": r["discrepancy"],
-                      "value": {address: r[address]}, "gains": r["gains"], "implausible": lap.implausible}
+                      "value": {address: r[address]}, "gains": r["gains"], "implausible": lap.implausible,
+                      "digest": lap_digest(lap)}
             journal.write(record)
             if db is not None:
                 db.lap(lap, record)
@@ -224,18 +226,20 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     with loading():
         from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display
         from tuner.live import LiveTwin, Worker, check_state, decode_line, feed_line, resume
-        from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, breaks_path, read_link
+        from twin.link import (DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, breaks_path, check_log,
+                               read_link)
 
     state = args.state or f"{args.log}.state.json"
     stats, signalled, gave_up, log_error = LinkStats(), [], None, None
     check_state(state)  # a file that is not a state of ours is refused before the log is even opened
+    check_log(args.log)
     check_journal(actions_path(args.log))
     ours = [f for f in (args.log, breaks_path(args.log), actions_path(args.log)) if not os.path.lexists(f)]
     log_file = DurableLog(args.log)  # locked, a cut-off last line marked: before anything reads it
     journal, actions, outbox, db = None, [], Outbox(), None
     try:
         journal = Journal(actions_path(args.log), os.path.basename(args.log))
-        db = HistoryWriter(args.db, args.log, out.warn) if args.db else None
+        db = HistoryWriter(args.db, args.log, out.warn, journal.log_id) if args.db else None
         actor = _actor(args, twin, options, outbox, journal, _action_printer(out, journal, rec, actions, db))
         live = LiveTwin(twin, options, state, on_lap, actor, _journal_record(journal, options.address, db))
         start_laps = resume(live, args.log)
