@@ -368,3 +368,31 @@ def test_processes_creating_one_new_database_at_once_all_get_it(tmp_path, backen
             p.join(60)
         assert said == ["ok"] * 4, (r, said)
         assert schema_diff(url) == []
+
+
+def test_a_live_session_rebuilds_into_the_rows_live_wrote_and_its_copy_adds_none(tmp_path, capsys):
+    """An emulated robot's 3 laps through live --db: its journal carries each lap's digest, which the log's laps
+    have (the journal is accepted as the log's own), and history --rebuild of a copy of the log, then of the log,
+    gives exactly the rows live wrote."""
+    import shutil
+
+    from live_helpers import emulator
+
+    emu = emulator("--track", "oval", "--tcp", 0, "--speed", 1000, "--laps", 3, "--json", cwd=tmp_path)
+    port = json.loads(emu.wait_line("stdout", lambda line: line.startswith("{"), "the emulator's link"))["link"]
+    log, live_url, rebuilt_url = str(tmp_path / "live.log"), sqlite(tmp_path, "live.sqlite"), sqlite(tmp_path, "r.sqlite")
+    capsys.readouterr()
+    code = main(["live", "--track", "oval", "--port", port, "--laps", "3", "--log", log, "--db", live_url, "--json"])
+    emu.wait(timeout=60)
+    assert code == 0, capsys.readouterr().err
+    from tuner.history import read_journal
+
+    journaled = {r["lap"]: r["digest"] for _, r in read_journal(actions_path(log)) if r["kind"] == "lap"}
+    assert len(journaled) == 3 and journaled == {lap.index: lap_digest(lap) for lap in log_laps(log)}
+    (tmp_path / "copy").mkdir()
+    copy = str(tmp_path / "copy" / "live.log")
+    for f in (log, actions_path(log)):
+        shutil.copy(f, tmp_path / "copy")
+    capsys.readouterr()
+    assert main(["history", "--rebuild", "--log", copy, "--log", log, "--db", rebuilt_url, "-q"]) == 0
+    assert dump(rebuilt_url) == dump(live_url) and len(dump(live_url)["lf_laps"]) == 3  # (the runs' log_path: the last)

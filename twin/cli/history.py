@@ -28,7 +28,9 @@ def add_parser(sub) -> None:
                    help="the history database (SQLAlchemy URL; default twin_history.sqlite in the working folder)")
     p.add_argument("--robot-id", metavar="ID", help="only this robot (its wire id; 'twin' for lap, tune and align runs)")
     p.add_argument("--rebuild", action="store_true", help="rebuild the database's rows of each --log from the log and "
-                   "the actions beside it (<log>.actions); running it again changes nothing")
+                   "the actions beside it (<log>.actions); running it again changes nothing, nor does a copy of a log "
+                   "(the same log: its rows are replaced); a journal that is not the log's, or a log live is still "
+                   "writing, is refused")
     p.add_argument("--log", action="append", metavar="FILE", help="a telemetry log of live (with --rebuild), repeatable")
     p.add_argument("--no-forecast", action="store_true", help="report without racing the twin")
     o.add_world(p)

@@ -47,7 +47,8 @@ def add_parser(sub) -> None:
     p.add_argument("--threshold", type=o.number(0.0, 1.0, lo_open=True), default=0.005, metavar="FRACTION",
                    help="relative lap-time difference that counts as disagreeing")
     p.add_argument("--k-laps", type=o.count_type, default=2, metavar="N", help="laps in a row above the threshold before re-aligning")
-    p.add_argument("--log", default="live_telemetry.log", metavar="FILE", help="telemetry log: every byte received, appended")
+    p.add_argument("--log", default="live_telemetry.log", metavar="FILE", help="telemetry log: every byte received, appended (to an existing file only if "
+                   "live wrote it: its <log>.breaks beside it)")
     p.add_argument("--state", metavar="FILE", help="state file (default: <log>.state.json)")
     p.add_argument("--laps", type=o.count_type, metavar="N", help="stop after this many robot laps")
     p.add_argument("--duration", type=o.number(0.0, 10**7, lo_open=True), metavar="WALL_S", help="stop after this many wall-clock seconds")
