@@ -431,39 +431,3 @@ def parse_json(text: str, where: str):
 def read_json(path: str, limit: int, what: str):
     """A JSON document from a file of at most ``limit`` bytes."""
     return parse_json(read_text(path, limit, what), path)
-
-
-def create_whole(path: str, head: bytes) -> bool:
-    """Create ``path`` holding ``head`` in one step, unless something is already there (left as it is): written
-    under a temporary name in its folder, fsynced and hard-linked into place, so a full disk or a crash leaves no
-    file or the whole of ``head``, never an empty file that the next run would take for a stranger's. True if this
-    call created it.
-
-    Raises:
-      OSError: the temporary file cannot be written (a full disk); nothing is left behind.
-    """
-    folder, name = os.path.split(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(head)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o666 & ~_UMASK)
-        try:
-            os.link(tmp, path)  # fails on an existing file: nothing is ever replaced
-        except FileExistsError:
-            return False
-        return True
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-
-
-def ends_with_newline(path: str) -> bool:
-    """Whether the file is empty or its last byte is a newline (an appended log or journal was not torn)."""
-    with open(path, "rb") as f:
-        if f.seek(0, os.SEEK_END) == 0:
-            return True
-        f.seek(-1, os.SEEK_END)
-        return f.read(1) == b"\n"

@@ -25,7 +25,8 @@ import uuid
 
 import numpy as np
 
-from lf_common.files import GENERATOR, create_whole, ends_with_newline, json_safe, jsonl_is_ours
+from lf_common.appended import create_whole, ends_with_newline
+from lf_common.files import GENERATOR, json_safe, jsonl_is_ours
 from twin.errors import TwinError
 from twin.telemetry.laps import RobotLap
 

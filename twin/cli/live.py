@@ -200,7 +200,8 @@ def _action_printer(out: Output, journal: Journal, rec, actions: list[dict], db:
 def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
     """What the live twin keeps (each lap's twin side, each alignment) to the journal beside the log, and the
     database."""
-    from tuner.history import lap_digest  # (loaded with the journal)
+    with loading():
+        from tuner.history import lap_digest
 
     def on_record(r: dict) -> None:
         if r["kind"] == "lap":

@@ -31,7 +31,8 @@ import time
 from typing import Iterator
 
 from lf_common.errors import OutputError
-from lf_common.files import GENERATOR, create_whole, ends_with_newline, jsonl_is_ours
+from lf_common.appended import create_whole, ends_with_newline
+from lf_common.files import GENERATOR, jsonl_is_ours
 from twin.errors import TwinError
 from twin.telemetry.wire import LineSplitter
 
