@@ -338,34 +338,42 @@ def test_a_log_live_is_writing_is_refused_for_rebuild_and_one_a_killed_live_left
     h.close()
 
 
-def _create(url: str, barrier, answers) -> None:
-    """One of the processes that open a history database at the same instant."""
-    barrier.wait(60)
-    try:
-        History(url).close()
-        answers.put("ok")
-    except Exception as e:
-        answers.put(f"{type(e).__name__}: {e}")
+# a process that opens a history database once told to go (the file named by argv[2] exists)
+OPENER = """import os, sys, time
+from tuner.history import History, HistoryError
+print("ready", flush=True)
+while not os.path.exists(sys.argv[2]):
+    time.sleep(0.001)
+try:
+    History(sys.argv[1]).close()
+    print("ok")
+except HistoryError as e:
+    print(e)
+"""
 
 
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_processes_creating_one_new_database_at_once_all_get_it(tmp_path, backend, request):
-    """4 processes released together by a barrier onto a database nobody has created yet, 5 rounds: every one
-    opens it (one creates it, the others wait and use it) and the schema is exactly the newest (the losers were
-    told it was "not a history database of this program", or that a table already existed)."""
-    import multiprocessing
+    """4 processes let go together (each polls for one file every millisecond) onto a database nobody has created
+    yet, 5 rounds: every one opens it (one creates it, the others wait and use it) and the schema is exactly the
+    newest (the losers were told it was "not a history database of this program", or that a table already
+    existed)."""
+    import subprocess
+    import sys
 
-    ctx = multiprocessing.get_context("fork")
     for r in range(5):
         url = sqlite(tmp_path, f"race{r}.sqlite") if backend == "sqlite" else request.getfixturevalue("postgres").database()
-        barrier, answers = ctx.Barrier(4), ctx.Queue()
-        procs = [ctx.Process(target=_create, args=(url, barrier, answers)) for _ in range(4)]
-        for p in procs:
-            p.start()
-        said = sorted(answers.get(timeout=120) for _ in procs)
-        for p in procs:
-            p.join(60)
-        assert said == ["ok"] * 4, (r, said)
+        go = tmp_path / f"go{r}"
+        procs = [subprocess.Popen([sys.executable, "-c", OPENER, url, str(go)], stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True) for _ in range(4)]
+        try:
+            assert [p.stdout.readline().strip() for p in procs] == ["ready"] * 4
+            go.touch()
+            said = [p.communicate(timeout=120) for p in procs]
+        finally:
+            for p in procs:
+                p.kill()
+        assert [out.strip() for out, _ in said] == ["ok"] * 4, (r, said)
         assert schema_diff(url) == []
 
 

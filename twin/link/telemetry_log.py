@@ -89,7 +89,7 @@ def check_log(path: str) -> None:
     """``--log`` can be appended to: no file yet, or a log of ours (see :func:`log_is_ours`). A file there that
     this program did not write is refused, left as it is; a folder or a device is refused too."""
     _check_log_path(path)
-    if os.path.lexists(path) and (os.path.islink(path) or not log_is_ours(path)):
+    if os.path.exists(path) and not log_is_ours(path):
         raise TwinError(f"{path}: exists and is not a telemetry log of {GENERATOR} (it has no break index "
                         f"{os.path.basename(breaks_path(path))} of this program beside it); it is left as it is: "
                         "choose another --log or move it away")
