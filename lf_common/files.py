@@ -431,12 +431,3 @@ def parse_json(text: str, where: str):
 def read_json(path: str, limit: int, what: str):
     """A JSON document from a file of at most ``limit`` bytes."""
     return parse_json(read_text(path, limit, what), path)
-
-
-def ends_with_newline(path: str) -> bool:
-    """Whether the file is empty or its last byte is a newline (an appended log or journal was not torn)."""
-    with open(path, "rb") as f:
-        if f.seek(0, os.SEEK_END) == 0:
-            return True
-        f.seek(-1, os.SEEK_END)
-        return f.read(1) == b"\n"

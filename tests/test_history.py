@@ -13,8 +13,8 @@ import pytest
 import sqlalchemy as sa
 
 from pg_server import postgres  # noqa: F401  (fixture)
-from tuner.history import (History, HistoryError, HistoryWriter, Journal, actions_path, forecast_failure, log_laps,
-                           rebuild_log, trend_of)
+from tuner.history import (History, HistoryError, HistoryWriter, Journal, actions_path, forecast_failure, lap_digest,
+                           log_id, log_laps, rebuild_log, trend_of)
 from tuner.history import schema
 from twin.cli.main import main
 from twin.core.digital_twin import DigitalTwin
@@ -64,20 +64,23 @@ def lap_lines(t0: float, lap_time: float, seq: int, fail: str | None = None) -> 
     return [encode(Header(8, 0.005, 2, "r7", seq)), encode(Event(t0, "START")), *rows, end]
 
 
-def session_files(folder, start: float = 1000.0, mu: float = 0.8) -> str:
-    """A log of 6 laps (a change of gains in force from lap 3, one failed lap) and its journal, its session begun at
-    ``start`` [s since the epoch], grip aligned to ``mu`` on laps 0 to 1; the log's path."""
+def session_files(folder, start: float = 1000.0, mu: float = 0.8, slower_s: float = 0.0) -> str:
+    """A log of 6 laps (a change of gains in force from lap 3, one failed lap; each lap ``slower_s`` slower than
+    7.0, 7.1, …) and its journal, its session begun at ``start`` [s since the epoch], grip aligned to ``mu`` on laps
+    0 to 1; the log's path."""
     log = os.path.join(folder, "robot.log")
     lines = [encode(Header(8, 0.005, 2, "r7", 0)), encode(Boot(0.0, "STORED", 3, 0))]
     t = 0.0
     for k, (lap, seq, fail) in enumerate([(7.0, 0, None), (7.1, 0, None), (7.2, 0, "off_track"), (7.3, 9, None),
                                           (7.31, 9, None), (7.32, 9, None)]):
+        lap += slower_s
         lines += lap_lines(t, lap, seq, fail)
         if k == 2:
             lines.append(encode(Reply(9, "ACK")))
         t += lap + 0.01
     with open(log, "w") as f:
         f.writelines(lines)
+    digests = [lap_digest(lap) for lap in log_laps(log)]  # as live journals each lap
     j = Journal(actions_path(log), "robot.log")
     records = [{"kind": "session", "time": start, "lap": 0, "act": True, "address": "motion.mu", "gains": PLAIN,
                 "pitch_m": 0.009525}]
@@ -85,7 +88,8 @@ def session_files(folder, start: float = 1000.0, mu: float = 0.8) -> str:
         gains = PLAIN if k < 3 else NEW
         records.append({"kind": "lap", "lap": k, "time": start + 7 * k, "robot": "r7", "gains_seq": 0 if k < 3 else 9,
                         "robot_lap_time_s": None if k == 2 else 7 + 0.1 * k, "twin_lap_time_s": 7.0,
-                        "discrepancy": 0.01, "value": {"motion.mu": 0.8}, "gains": gains, "implausible": None})
+                        "discrepancy": 0.01, "value": {"motion.mu": 0.8}, "gains": gains, "implausible": None,
+                        "digest": digests[k]})
         if k == 1:
             records.append({"kind": "alignment", "first_lap": 0, "lap": 1, "time": start + 10, "address": "motion.mu",
                             "robot": "r7", "explained": True, "value": mu, "before": 0.9, "interval": [mu - 0.01, mu + 0.01],
@@ -109,7 +113,7 @@ def online(url: str, log: str) -> None:
     from tuner.history import read_journal
 
     laps = {lap.index: lap for lap in log_laps(log)}
-    writer = HistoryWriter(url, log, print)
+    writer = HistoryWriter(url, log, print, log_id(log))
     for index, r in read_journal(actions_path(log)):
         if r["kind"] == "lap":
             writer.lap(laps[r["lap"]], r)
@@ -282,3 +286,122 @@ def test_bad_history_input_is_one_line_and_no_number(tmp_path, capsys):
     assert robot["causes_tracked"] == ["motion.mu"] and "cannot tell them apart" in robot["causes_note"]
     assert f["laps_to_failure"] is None and f["interval"] is None and f["quantiles"] is None and f["laps"] == 0
     assert f["statement"].startswith("too little evidence") and not any(ch.isdigit() for ch in f["statement"].split(":")[0])
+
+
+def test_a_copy_of_a_log_and_its_journal_is_the_same_life_not_a_second_one(tmp_path):
+    """The original and a copy of it (log and journal, under another name in another folder) rebuilt into one
+    database give the rows of the original alone: the same laps, alignment, change and events, once (each was
+    there twice, and the trend of μ halved)."""
+    import shutil
+
+    (tmp_path / "a").mkdir()
+    (tmp_path / "backup").mkdir()
+    log = session_files(str(tmp_path / "a"))
+    copy = str(tmp_path / "backup" / "robot-copy.log")
+    shutil.copy(log, copy)
+    shutil.copy(actions_path(log), actions_path(copy))
+    alone, both = sqlite(tmp_path, "alone.sqlite"), sqlite(tmp_path, "both.sqlite")
+    h = History(alone)
+    rebuild_log(h, log)
+    h.close()
+    h = History(both)
+    for path in (log, copy, log, copy):
+        rebuild_log(h, path)
+    h.close()
+    once, twice = dump(alone), dump(both)
+    assert len(once["lf_laps"]) == 6 and len(once["lf_gain_changes"]) == 1 and len(once["lf_alignments"]) == 1
+    for table in ("lf_robots", "lf_laps", "lf_alignments", "lf_gain_changes", "lf_events"):
+        assert twice[table] == once[table], table
+    assert len(twice["lf_runs"]) == len(once["lf_runs"]) == 1  # (its log_path: the copy's, rebuilt last)
+
+
+def test_a_log_live_is_writing_is_refused_for_rebuild_and_one_a_killed_live_left_is_not(tmp_path):
+    """A log held by a running live (its lock) is refused and nothing is written; once that process is killed
+    (SIGKILL: no clean-up of any marker), the lock is gone with it and the log rebuilds."""
+    import subprocess
+    import sys
+
+    from twin.errors import TwinError
+
+    log = session_files(str(tmp_path))
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom twin.link import DurableLog\n"
+                               "held = DurableLog(sys.argv[1])\nprint('held', flush=True)\ntime.sleep(300)", log],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        h = History(sqlite(tmp_path))
+        with pytest.raises(TwinError, match="live is still writing it"):
+            rebuild_log(h, log)
+        assert dump(h.url)["lf_laps"] == []
+    finally:
+        holder.kill()
+        holder.wait(timeout=60)
+    assert rebuild_log(h, log)["laps"] == 6 and len(dump(h.url)["lf_laps"]) == 6
+    h.close()
+
+
+# a process that opens a history database once told to go (the file named by argv[2] exists)
+OPENER = """import os, sys, time
+from tuner.history import History, HistoryError
+print("ready", flush=True)
+while not os.path.exists(sys.argv[2]):
+    time.sleep(0.001)
+try:
+    History(sys.argv[1]).close()
+    print("ok")
+except HistoryError as e:
+    print(e)
+"""
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+def test_processes_creating_one_new_database_at_once_all_get_it(tmp_path, backend, request):
+    """4 processes let go together (each polls for one file every millisecond) onto a database nobody has created
+    yet, 5 rounds: every one opens it (one creates it, the others wait and use it) and the schema is exactly the
+    newest (the losers were told it was "not a history database of this program", or that a table already
+    existed)."""
+    import subprocess
+    import sys
+
+    for r in range(5):
+        url = sqlite(tmp_path, f"race{r}.sqlite") if backend == "sqlite" else request.getfixturevalue("postgres").database()
+        go = tmp_path / f"go{r}"
+        procs = [subprocess.Popen([sys.executable, "-c", OPENER, url, str(go)], stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True) for _ in range(4)]
+        try:
+            assert [p.stdout.readline().strip() for p in procs] == ["ready"] * 4
+            go.touch()
+            said = [p.communicate(timeout=120) for p in procs]
+        finally:
+            for p in procs:
+                p.kill()
+        assert [out.strip() for out, _ in said] == ["ok"] * 4, (r, said)
+        assert schema_diff(url) == []
+
+
+def test_a_live_session_rebuilds_into_the_rows_live_wrote_and_its_copy_adds_none(tmp_path, capsys):
+    """An emulated robot's 3 laps through live --db: its journal carries each lap's digest, which the log's laps
+    have (the journal is accepted as the log's own), and history --rebuild of a copy of the log, then of the log,
+    gives exactly the rows live wrote."""
+    import shutil
+
+    from live_helpers import emulator
+
+    emu = emulator("--track", "oval", "--tcp", 0, "--speed", 1000, "--laps", 3, "--json", cwd=tmp_path)
+    port = json.loads(emu.wait_line("stdout", lambda line: line.startswith("{"), "the emulator's link"))["link"]
+    log, live_url, rebuilt_url = str(tmp_path / "live.log"), sqlite(tmp_path, "live.sqlite"), sqlite(tmp_path, "r.sqlite")
+    capsys.readouterr()
+    code = main(["live", "--track", "oval", "--port", port, "--laps", "3", "--log", log, "--db", live_url, "--json"])
+    emu.wait(timeout=60)
+    assert code == 0, capsys.readouterr().err
+    from tuner.history import read_journal
+
+    journaled = {r["lap"]: r["digest"] for _, r in read_journal(actions_path(log)) if r["kind"] == "lap"}
+    assert len(journaled) == 3 and journaled == {lap.index: lap_digest(lap) for lap in log_laps(log)}
+    (tmp_path / "copy").mkdir()
+    copy = str(tmp_path / "copy" / "live.log")
+    for f in (log, actions_path(log)):
+        shutil.copy(f, tmp_path / "copy")
+    capsys.readouterr()
+    assert main(["history", "--rebuild", "--log", copy, "--log", log, "--db", rebuilt_url, "-q"]) == 0
+    assert dump(rebuilt_url) == dump(live_url) and len(dump(live_url)["lf_laps"]) == 3  # (the runs' log_path: the last)

@@ -14,6 +14,7 @@ from tuner.live import LiveOptions, LiveTwin, resume
 from tuner.live.state import state_is_ours, write_state
 from twin.cli.main import main
 from twin.core.digital_twin import DigitalTwin
+from twin.link import DurableLog
 from twin.link.emulator import lap_records
 
 HEADER = '{\n  "generator": "line-follower-twin",\n  "kind": "live state"'
@@ -40,6 +41,7 @@ def twin():
 def log(tmp_path, twin):
     path = tmp_path / "live.log"
     path.write_text("".join(line for _, line in lap_records(twin, 7, 4, 2)))
+    DurableLog(str(path)).close()  # a log of live's: its break index beside it
     return path
 
 

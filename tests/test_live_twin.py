@@ -21,7 +21,7 @@ from live_helpers import (DEADLINE_S, OVAL, RUN, emulator, lap_lines, live_here,
 from tuner.live.live_twin import LiveOptions, LiveTwin
 from twin.cli.main import main
 from twin.core.digital_twin import DigitalTwin
-from twin.link import log_lines
+from twin.link import DurableLog, log_lines
 from twin.telemetry.wire import Event, Header, Sample, decode, encode
 
 
@@ -67,6 +67,7 @@ def test_ctrl_c_and_sigterm_stop_cleanly_with_one_json_document(tmp_path, robots
     for sig in (signal.SIGINT, signal.SIGTERM):
         log = tmp_path / f"{sig.name}.log"
         log.write_text("".join(lap_lines(8.8)))  # one lap from an earlier run: "resumed" is said, on stderr
+        DurableLog(str(log)).close()  # (that run's: its break index beside it)
         robot = robots([samples(20)])
         lives[sig] = log, subprocess.Popen([*RUN, "live", *OVAL, "--port", robot.url, "--log", str(log), "--json"],
                                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)

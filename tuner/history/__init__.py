@@ -9,12 +9,13 @@ the degradation state filtered from all the evidence, the twin's failure edge, t
 
 from tuner.history.commands import record_alignment, record_fit, record_lap
 from tuner.history.forecast import Forecast, failure_bracket, first_failure, forecast_failure
-from tuner.history.journal import Journal, actions_path, check_journal, read_journal
+from tuner.history.journal import Journal, actions_path, check_belongs, check_journal, lap_digest, log_id, read_journal
 from tuner.history.rebuild import log_laps, rebuild_log
 from tuner.history.store import DEFAULT_DB, History, HistoryError, check_db, default_url, display
 from tuner.history.trend import Trend, trend_of
 from tuner.history.writer import HistoryWriter
 
 __all__ = ["DEFAULT_DB", "Forecast", "History", "HistoryError", "HistoryWriter", "Journal", "Trend", "actions_path",
-           "check_db", "check_journal", "default_url", "display", "failure_bracket", "first_failure", "forecast_failure", "log_laps",
-           "read_journal", "rebuild_log", "record_alignment", "record_fit", "record_lap", "trend_of"]
+           "check_belongs", "check_db", "check_journal", "default_url", "display", "failure_bracket", "first_failure",
+           "forecast_failure", "lap_digest", "log_id", "log_laps", "read_journal", "rebuild_log", "record_alignment",
+           "record_fit", "record_lap", "trend_of"]

@@ -4,7 +4,8 @@ twin writing as it goes and for ``history --rebuild`` reading the files back, so
 The robot's side of every lap comes from the log (lap time, completed or why not, the gains' sequence number, the
 line position, whence the cross-track error: the line's offset from the array's centre, in metres by the sensor
 pitch the twin had); the twin's side (its prediction, the aligned values, the gains it believed in force) and
-everything the twin did come from the journal, each row keyed by its place there.
+everything the twin did come from the journal, each row keyed by its place there under the log's id
+(:func:`tuner.history.journal.log_id`), not its path: the same lap from a copy of the log is the same row.
 """
 
 from __future__ import annotations
@@ -35,13 +36,18 @@ def cross_track(lap: RobotLap, pitch_m: float) -> tuple[float | None, float | No
     return float(offset.max()), float(offset.mean())
 
 
-class LogIngest:
-    """The rows of one telemetry log (``log_path``) and its journal, written through ``history`` on a connection
-    per call."""
+def log_key(log_id: str) -> str:
+    """What every row key of a log starts with (``<key>#…``)."""
+    return f"log:{log_id}"
 
-    def __init__(self, history: History, log_path: str):
-        self.h, self.log = history, os.path.abspath(log_path)
-        self.session_key, self.session_lap, self.settings = f"{self.log}#log", 0, {}
+
+class LogIngest:
+    """The rows of one telemetry log (``log_path``, known by ``log_id``) and its journal, written through
+    ``history`` on a connection per call."""
+
+    def __init__(self, history: History, log_path: str, log_id: str):
+        self.h, self.log, self.key = history, os.path.abspath(log_path), log_key(log_id)
+        self.session_key, self.session_lap, self.settings = f"{self.key}#log", 0, {}
         self.runs: dict[tuple[str, str], int] = {}
         self.pitch = DEFAULT_PITCH_M
         self.robot: str | None = None  # the robot last heard from: what a record without one is about
@@ -60,7 +66,7 @@ class LogIngest:
 
     def session(self, record: dict, index: int) -> None:
         """A live session began (a journal ``session`` record at line ``index``)."""
-        self.session_key, self.session_lap = f"{self.log}#j{index}", int(record.get("lap") or 0)
+        self.session_key, self.session_lap = f"{self.key}#j{index}", int(record.get("lap") or 0)
         self.settings = {k: v for k, v in record.items() if k != "kind"}
         self.pitch = float(record.get("pitch_m") or DEFAULT_PITCH_M)
 
@@ -70,7 +76,7 @@ class LogIngest:
         when = twin_side.get("time")
         run_id, robot_id = self._run(c, lap.robot, when)
         xmax, xmean = cross_track(lap, self.pitch)
-        History.put(c, s.laps, f"{self.log}#lap{lap.index}", run_id=run_id, robot_id=robot_id, lap=lap.index,
+        History.put(c, s.laps, f"{self.key}#lap{lap.index}", run_id=run_id, robot_id=robot_id, lap=lap.index,
                     time=when, completed=lap.lap_time_s is not None, lap_time_s=lap.lap_time_s, failure=lap.failure,
                     implausible=lap.implausible, energy_j=None, xte_max_m=xmax, xte_mean_m=xmean,
                     gains_seq=lap.gains_seq, gains=twin_side.get("gains"),
@@ -80,7 +86,7 @@ class LogIngest:
     def alignment(self, c, r: dict, index: int) -> None:
         run_id, robot_id = self._run(c, r.get("robot"), r.get("time"))
         lo, hi = r.get("interval") or (None, None)
-        History.put(c, s.alignments, f"{self.log}#j{index}", run_id=run_id, robot_id=robot_id, lap=r.get("lap"),
+        History.put(c, s.alignments, f"{self.key}#j{index}", run_id=run_id, robot_id=robot_id, lap=r.get("lap"),
                     time=r.get("time"), address=r.get("address") or "motion.mu", before=r.get("before"),
                     value=r.get("value"), lo=lo, hi=hi, explained=bool(r.get("explained")),
                     identifiable=r.get("identifiable"), measured_lap_time_s=r.get("measured_lap_time_s"),
@@ -91,7 +97,7 @@ class LogIngest:
         """One action of the live twin: a gain change's step, or another event."""
         run_id, robot_id = self._run(c, a.get("robot"), a.get("time"))
         kind, seq = a["kind"], a.get("seq")
-        key = f"{self.log}#change{seq}"
+        key = f"{self.key}#change{seq}"
         if kind == "decide":
             History.put(c, s.gain_changes, key, run_id=run_id, robot_id=robot_id, seq=seq, kind=a.get("change"),
                         decided_lap=a.get("decided_lap"), status="decided", gains=a.get("gains"),
@@ -110,7 +116,7 @@ class LogIngest:
             elif kind == "in_force":
                 values["first_lap"] = a.get("lap")
             c.execute(s.gain_changes.update().where(s.gain_changes.c.source == key).values(**values))
-        History.put(c, s.events, f"{self.log}#j{index}", run_id=run_id, robot_id=robot_id, lap=a.get("lap"),
+        History.put(c, s.events, f"{self.key}#j{index}", run_id=run_id, robot_id=robot_id, lap=a.get("lap"),
                     time=a.get("time"), kind=kind, seq=seq, outcome=a.get("outcome"),
                     data={k: v for k, v in a.items() if k not in ("kind", "lap", "time", "seq", "outcome", "robot")})
 

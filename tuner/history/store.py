@@ -89,15 +89,41 @@ def check_db(url: str) -> None:
         if engine.dialect.name == "sqlite" and engine.url.database and os.path.isfile(engine.url.database):
             try:
                 with engine.connect() as c:
-                    tables = set(sa.inspect(c).get_table_names())
-                    revision = current_revision(c) if tables else None
+                    _refuse_foreign(c, url)
             except sa.exc.SQLAlchemyError as e:
                 raise HistoryError(f"--db {display(url)}: not a database ({_why(e)}); it is left as it is") from None
-            if tables and revision is None:
-                raise HistoryError(f"--db {display(url)}: holds tables but is not a history database of this "
-                                   "program; it is left as it is: give another --db")
     finally:
         engine.dispose()
+
+
+def _foreign(connection) -> list[str]:
+    """What a database without this program's version table holds of someone else's: its tables and views, and
+    in SQLite a ``user_version`` or ``application_id`` set (empty: nothing, it may become a history)."""
+    inspector = sa.inspect(connection)
+    out = [f"table {t}" for t in sorted(inspector.get_table_names())]
+    out += [f"view {v}" for v in sorted(inspector.get_view_names())]
+    if connection.dialect.name == "sqlite":
+        for pragma in ("user_version", "application_id"):
+            value = connection.exec_driver_sql(f"PRAGMA {pragma}").scalar()
+            if value:
+                out.append(f"{pragma} {value}")
+    return out
+
+
+def _refuse_foreign(connection, url: str) -> str | None:
+    """The database's revision of ours (None: none yet); one that holds anything else of someone's, or was
+    migrated by a newer version of this program, is refused."""
+    revision = current_revision(connection)
+    if revision is None:
+        foreign = _foreign(connection)
+        if foreign:
+            shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+            raise HistoryError(f"--db {display(url)}: holds {shown} but is not a history database of this program; "
+                               "it is left as it is: give another --db")
+    elif revision not in _known_revisions():
+        raise HistoryError(f"--db {display(url)}: was migrated to revision {revision} by a newer version of this "
+                           "program; upgrade this one to use it")
+    return revision
 
 
 def _why(e: BaseException) -> str:
@@ -127,21 +153,35 @@ def current_revision(connection) -> str | None:
     return connection.execute(sa.text(f"SELECT version_num FROM {s.VERSION_TABLE}")).scalar()
 
 
+UPGRADE_WAIT_S = 60  # [s] at most waited for another process that is creating or upgrading the same database
+_PG_LOCK = 0x6C665F68  # the advisory lock the history's creators take in a PostgreSQL database ("lf_h")
+
+
+def _serialise(connection) -> None:
+    """Take the database's write lock before looking at it, so that of processes creating (or upgrading) the
+    same database at once one does it and the others wait, then find it done: a SQLite write transaction
+    (``BEGIN IMMEDIATE``), a PostgreSQL advisory lock held to the end of the transaction."""
+    if connection.dialect.name == "sqlite":
+        connection.exec_driver_sql(f"PRAGMA busy_timeout = {UPGRADE_WAIT_S * 1000}")
+        connection.exec_driver_sql("BEGIN IMMEDIATE")  # (pysqlite would begin only before the first row written)
+    elif connection.dialect.name == "postgresql":
+        connection.exec_driver_sql(f"SET LOCAL lock_timeout = '{UPGRADE_WAIT_S}s'")
+        connection.execute(sa.text("SELECT pg_advisory_xact_lock(:key)"), {"key": _PG_LOCK})
+
+
 def upgrade(engine: sa.Engine, url: str) -> None:
-    """Create or upgrade the schema to the newest migration; refuse a database that is not a history of ours."""
+    """Create or upgrade the schema to the newest migration, in one transaction under the database's write lock;
+    refuse a database that is not a history of ours."""
     from alembic import command
 
     with engine.begin() as connection:
-        tables = set(sa.inspect(connection).get_table_names())
-        revision = current_revision(connection)
-        if revision is None and tables:
-            raise HistoryError(f"--db {display(url)}: holds tables ({', '.join(sorted(tables)[:4])}…) but is not a "
-                               "history database of this program; it is left as it is: give another --db")
-        if revision is not None and revision not in _known_revisions():
-            raise HistoryError(f"--db {display(url)}: was migrated to revision {revision} by a newer version of this "
-                               "program; upgrade this one to use it")
-        if revision != head():
-            command.upgrade(_alembic_config(connection), "head")
+        _serialise(connection)
+        try:
+            if _refuse_foreign(connection, url) != head():
+                command.upgrade(_alembic_config(connection), "head")
+        finally:
+            if connection.dialect.name == "sqlite":
+                connection.exec_driver_sql(f"PRAGMA busy_timeout = {CONNECT_TIMEOUT_S * 1000}")
 
 
 def _known_revisions() -> set[str]:
@@ -205,9 +245,12 @@ class History:
         c.execute(table.update().where(table.c.id == row.id).values(**values))
         return row.id
 
-    def forget_log(self, c, log_path: str) -> int:
-        """Delete every row that came from this telemetry log (before it is rebuilt); how many runs it had."""
-        ids = [r.id for r in c.execute(sa.select(s.runs.c.id).where(s.runs.c.log_path == log_path))]
+    def forget_log(self, c, key: str, log_path: str) -> int:
+        """Delete every row that came from this telemetry log (before it is rebuilt): its rows keyed ``<key>#…``,
+        from any copy of it, and those keyed by its path by versions before logs had ids; how many runs it had."""
+        keyed = sa.or_(s.runs.c.source.startswith(f"{key}#", autoescape=True),
+                       sa.and_(s.runs.c.log_path == log_path, s.runs.c.source.startswith(f"{log_path}#", autoescape=True)))
+        ids = [r.id for r in c.execute(sa.select(s.runs.c.id).where(keyed))]
         for table in (s.laps, s.alignments, s.gain_changes, s.events):
             c.execute(table.delete().where(table.c.run_id.in_(ids)))
         c.execute(s.runs.delete().where(s.runs.c.id.in_(ids)))

@@ -26,14 +26,15 @@ class HistoryWriter:
       log_path: the telemetry log whose rows these are.
       say: where the one warning about a database that cannot be used goes (it is given the text after
         ``warning: ``).
+      log_id: the log's id (its journal's: :attr:`tuner.history.journal.Journal.log_id`).
     """
 
-    def __init__(self, url: str, log_path: str, say: Callable[[str], None]):
+    def __init__(self, url: str, log_path: str, say: Callable[[str], None], log_id: str):
         self.url, self.say, self.failed = url, say, None
         self.queue: queue.Queue = queue.Queue()
         self.history, self.ingest = None, None
         self.written = 0
-        self.thread = threading.Thread(target=self._run, args=(log_path,), name="history", daemon=True)
+        self.thread = threading.Thread(target=self._run, args=(log_path, log_id), name="history", daemon=True)
         self.thread.start()
 
     def _fail(self, e: HistoryError) -> None:
@@ -41,10 +42,10 @@ class HistoryWriter:
         self.say(f"{e}; the run goes on without it (fill it in later: history --rebuild --log LOG "
                  f"--db {display(self.url)})")
 
-    def _run(self, log_path: str) -> None:
+    def _run(self, log_path: str, log_id: str) -> None:
         try:
             self.history = History(self.url)
-            self.ingest = LogIngest(self.history, log_path)
+            self.ingest = LogIngest(self.history, log_path, log_id)
         except HistoryError as e:
             self._fail(e)
         while True:

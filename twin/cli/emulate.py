@@ -50,7 +50,8 @@ def add_parser(sub) -> None:
     p.add_argument("--robot-id", default="lf-1", metavar="ID", help="the robot's id in its wire headers (1-16 of A-Z a-z 0-9 _ -)")
     p.add_argument("--wire", type=int, choices=(1, 2), default=2,
                    help="the wire version it speaks: 2 (an id, answers commands) or 1 (an older robot: neither)")
-    p.add_argument("--eeprom", metavar="FILE", help="its EEPROM (stored gains), kept in FILE across runs (created if missing)")
+    p.add_argument("--eeprom", metavar="FILE", help="its EEPROM (stored gains), kept in FILE across runs (created at the first STORE; "
+                   "a file that is not its image is refused)")
     p.add_argument("--commands", choices=COMMAND_MODES, default="answer",
                    help="how it treats the twin's commands: answer them, refuse each SET and STORE (NAK,LOCKED), or "
                         "ignore them (a receive line that is cut)")

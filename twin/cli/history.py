@@ -28,7 +28,9 @@ def add_parser(sub) -> None:
                    help="the history database (SQLAlchemy URL; default twin_history.sqlite in the working folder)")
     p.add_argument("--robot-id", metavar="ID", help="only this robot (its wire id; 'twin' for lap, tune and align runs)")
     p.add_argument("--rebuild", action="store_true", help="rebuild the database's rows of each --log from the log and "
-                   "the actions beside it (<log>.actions); running it again changes nothing")
+                   "the actions beside it (<log>.actions); running it again changes nothing, nor does a copy of a log "
+                   "(the same log: its rows are replaced); a journal that is not the log's, or a log live is still "
+                   "writing, is refused")
     p.add_argument("--log", action="append", metavar="FILE", help="a telemetry log of live (with --rebuild), repeatable")
     p.add_argument("--no-forecast", action="store_true", help="report without racing the twin")
     o.add_world(p)
@@ -132,13 +134,15 @@ def _say(out: Output, e: dict) -> None:
 def _rebuild(args, out: Output) -> int:
     with loading():
         from tuner.history import History, check_db, display, rebuild_log
+        from tuner.history.rebuild import read_log
 
     check_db(args.db)
+    logs = [read_log(path) for path in args.log]  # each refused (live writing it, a journal not its own) before any row
     history = History(args.db)
     done = []
     try:
-        for path in args.log:
-            r = rebuild_log(history, path)
+        for log in logs:
+            r = rebuild_log(history, log)
             done.append(r)
             out.say(f"rebuilt {r['laps']} laps and {r['journal_records']} journaled records of {r['log']} "
                     f"(replacing {r['runs_replaced']} runs) in {display(args.db)}")

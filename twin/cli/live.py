@@ -48,7 +48,8 @@ def add_parser(sub) -> None:
     p.add_argument("--threshold", type=o.number(0.0, 1.0, lo_open=True), default=0.005, metavar="FRACTION",
                    help="relative lap-time difference that counts as disagreeing")
     p.add_argument("--k-laps", type=o.count_type, default=2, metavar="N", help="laps in a row above the threshold before re-aligning")
-    p.add_argument("--log", default="live_telemetry.log", metavar="FILE", help="telemetry log: every byte received, appended")
+    p.add_argument("--log", default="live_telemetry.log", metavar="FILE", help="telemetry log: every byte received, appended (to an existing file only if "
+                   "live wrote it: its <log>.breaks beside it)")
     p.add_argument("--state", metavar="FILE", help="state file (default: <log>.state.json)")
     p.add_argument("--laps", type=o.count_type, metavar="N", help="stop after this many robot laps")
     p.add_argument("--duration", type=o.number(0.0, 10**7, lo_open=True), metavar="WALL_S", help="stop after this many wall-clock seconds")
@@ -202,6 +203,8 @@ def _action_printer(out: Output, journal: Journal, rec, actions: list[dict], db:
 def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
     """What the live twin keeps (each lap's twin side, each alignment) to the journal beside the log, and the
     database."""
+    with loading():
+        from tuner.history import lap_digest
 
     def on_record(r: dict) -> None:
         if r["kind"] == "lap":
@@ -209,7 +212,8 @@ def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
             record = {"kind": "lap", "lap": r["lap"], "time": round(time.time(), 3), "robot": r["robot"],
                       "gains_seq": r["gains_seq"], "robot_lap_time_s": r["robot_lap_time_s"],
                       "twin_lap_time_s": r["twin_lap_time_s"], "discrepancy": r["discrepancy"],
-                      "value": {address: r[address]}, "gains": r["gains"], "implausible": lap.implausible}
+                      "value": {address: r[address]}, "gains": r["gains"], "implausible": lap.implausible,
+                      "digest": lap_digest(lap)}
             journal.write(record)
             if db is not None:
                 db.lap(lap, record)
@@ -227,18 +231,20 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     with loading():
         from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display
         from tuner.live import LiveTwin, Worker, check_state, decode_line, feed_line, resume
-        from twin.link import DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, breaks_path, read_link
+        from twin.link import (DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, breaks_path, check_log,
+                               read_link)
 
     state = args.state or f"{args.log}.state.json"
     stats, signalled, gave_up, log_error = LinkStats(), [], None, None
     check_state(state)  # a file that is not a state of ours is refused before the log is even opened
+    check_log(args.log)
     check_journal(actions_path(args.log))
     ours = [f for f in (args.log, breaks_path(args.log), actions_path(args.log)) if not os.path.lexists(f)]
     log_file = DurableLog(args.log)  # locked, a cut-off last line marked: before anything reads it
     journal, actions, outbox, db = None, [], Outbox(), None
     try:
         journal = Journal(actions_path(args.log), os.path.basename(args.log))
-        db = HistoryWriter(args.db, args.log, out.warn) if args.db else None
+        db = HistoryWriter(args.db, args.log, out.warn, journal.log_id) if args.db else None
         actor = _actor(args, twin, options, outbox, journal, _action_printer(out, journal, rec, actions, db))
         live = LiveTwin(twin, options, state, on_lap, actor, _journal_record(journal, options.address, db))
         start_laps = resume(live, args.log)

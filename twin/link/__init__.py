@@ -5,7 +5,8 @@ streaming wire telemetry on a pty or TCP port (:mod:`twin.link.emulator`) and an
 (:mod:`twin.link.robot_end`)."""
 
 from twin.link.reader import LinkGaveUp, LinkStats, Outbox, check_port, read_link
-from twin.link.telemetry_log import DurableLog, LogWriteError, breaks_path, log_lines, read_breaks
+from twin.link.telemetry_log import (DurableLog, LogWriteError, breaks_path, check_log, log_is_ours, log_lines,
+                                     read_breaks, unlocked_for_reading)
 
-__all__ = ["DurableLog", "LinkGaveUp", "LinkStats", "LogWriteError", "Outbox", "breaks_path", "check_port", "log_lines",
-           "read_breaks", "read_link"]
+__all__ = ["DurableLog", "LinkGaveUp", "LinkStats", "LogWriteError", "Outbox", "breaks_path", "check_log", "check_port",
+           "log_is_ours", "log_lines", "read_breaks", "read_link", "unlocked_for_reading"]

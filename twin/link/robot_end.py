@@ -75,23 +75,39 @@ def read_stored(image: bytes) -> tuple[str, int, tuple[int, ...] | None, int, in
     return source, newest[2], newest[3], bad, newest[0]
 
 
+def _why_not_image(path: str) -> str | None:
+    """Why the file is not an EEPROM image this program wrote (None: it is one). Every image written holds a
+    stored set, so at least one slot starts with :data:`MAGIC`, even when a bit of it has since flipped (a slot
+    that fails its CRC is the robot's to report, not a stranger's file)."""
+    try:
+        with open(path, "rb") as f:
+            image = f.read(IMAGE_SIZE + 1)
+    except OSError as e:
+        return f"cannot be read ({e.strerror or e})"
+    if len(image) != IMAGE_SIZE:
+        return f"{len(image) if len(image) <= IMAGE_SIZE else 'more than ' + str(IMAGE_SIZE)} bytes, expected {IMAGE_SIZE}"
+    if not any(image[i * SLOT_SIZE:i * SLOT_SIZE + len(MAGIC)] == MAGIC for i in range(SLOTS)):
+        return f"no stored-gains slot: neither of its {SLOTS} slots of {SLOT_SIZE} bytes begins with {MAGIC.decode()}"
+    return None
+
+
 def _is_image(path: str) -> bool:
-    return os.path.getsize(path) == IMAGE_SIZE
+    return _why_not_image(path) is None
 
 
 class EepromFile:
-    """The emulated robot's EEPROM, kept in a file of exactly :data:`IMAGE_SIZE` bytes (created erased if
-    missing; any other file there is refused, untouched). Each write replaces it atomically."""
+    """The emulated robot's EEPROM, kept in a file of exactly :data:`IMAGE_SIZE` bytes, its two slots (created on
+    the first STORE; a file there that is not such an image, :func:`_why_not_image`, is refused, untouched). Each
+    write replaces it atomically."""
 
     def __init__(self, path: str):
         self.path = path
         if os.path.isdir(path):
             raise TwinError(f"{path}: is a folder; name a file for the robot's EEPROM image")
         if os.path.exists(path):
-            size = os.path.getsize(path)
-            if size != IMAGE_SIZE:
-                raise TwinError(f"{path}: is not this robot's EEPROM image ({size} bytes, expected {IMAGE_SIZE}); "
-                                "it is left as it is")
+            why = _why_not_image(path)
+            if why is not None:
+                raise TwinError(f"{path}: is not this robot's EEPROM image ({why}); it is left as it is")
         elif not os.path.isdir(os.path.dirname(os.path.abspath(path))):
             raise TwinError(f"{path}: folder {os.path.dirname(os.path.abspath(path))} does not exist")
 

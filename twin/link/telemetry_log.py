@@ -7,7 +7,13 @@
   connection's bytes would continue it. The break index ``<log>.breaks`` (JSON Lines: a header of this program,
   then ``{"offset": N, "why": …}`` per end of a stream) records the byte offset of each end, so that a reader
   of the log (:func:`log_lines`: replay, resume) ends the line there instead of gluing it to the next one.
-  A crash leaves no mark: the next run adds it at the log's end before appending anything.
+  A crash leaves no mark: the next run adds it at the log's end before appending anything. The index is created
+  whole (its header in one step, before the log) or not at all: a full disk leaves nothing that blocks the next run.
+* **Only a log of this program is appended to.** The log cannot carry a header (it is the robot's bytes alone);
+  the break index beside it, which every run creates, is what marks it as ours (:func:`log_is_ours`). A file at
+  ``--log`` without one is the user's: refused, untouched (:func:`check_log`).
+* **A log being written is locked**: :func:`unlocked_for_reading` refuses it (``history --rebuild``); the lock dies
+  with the process that held it, so a crashed run leaves nothing stale.
 * **A log that cannot be written stops the reading** (:class:`LogWriteError`, naming the file and the cause): the
   log is the record, and bytes that cannot be kept are not decoded either.
 """
@@ -25,7 +31,8 @@ import time
 from typing import Iterator
 
 from lf_common.errors import OutputError
-from lf_common.files import GENERATOR, ends_with_newline, jsonl_is_ours
+from lf_common.appended import create_whole, ends_with_newline
+from lf_common.files import GENERATOR, jsonl_is_ours
 from twin.errors import TwinError
 from twin.telemetry.wire import LineSplitter
 
@@ -62,27 +69,79 @@ def _check_log_path(path: str) -> None:
         raise TwinError(f"{path}: is not a regular file; name a file for the telemetry log")
 
 
+def _index_is_ours(index_path: str) -> bool:
+    if not (os.path.isfile(index_path) and not os.path.islink(index_path)):
+        return False
+    try:
+        with open(index_path, "rb") as f:
+            head = json.loads(f.readline(2**16))
+    except (OSError, ValueError):
+        return False
+    return isinstance(head, dict) and head.get("generator") == GENERATOR and head.get("kind") == BREAKS_KIND
+
+
+def log_is_ours(path: str) -> bool:
+    """A telemetry log this program wrote: its break index (which every run creates first) carries the header."""
+    return _index_is_ours(breaks_path(path))
+
+
+def check_log(path: str) -> None:
+    """``--log`` can be appended to: no file yet, or a log of ours (see :func:`log_is_ours`). A file there that
+    this program did not write is refused, left as it is; a folder or a device is refused too."""
+    _check_log_path(path)
+    if os.path.exists(path) and not log_is_ours(path):
+        raise TwinError(f"{path}: exists and is not a telemetry log of {GENERATOR} (it has no break index "
+                        f"{os.path.basename(breaks_path(path))} of this program beside it); it is left as it is: "
+                        "choose another --log or move it away")
+
+
+def _is_locked_error(e: OSError) -> bool:
+    return e.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES)
+
+
+@contextlib.contextmanager
+def unlocked_for_reading(path: str, why: str):
+    """Hold a shared lock on the log while reading it; a log that ``live`` is writing (its exclusive lock) is
+    refused, naming ``why`` the whole log is needed."""
+    try:
+        f = open(path, "rb")
+    except OSError as e:
+        raise TwinError(f"{path}: cannot read the telemetry log ({_why(e)})") from None
+    with f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError as e:
+            if _is_locked_error(e):
+                raise TwinError(f"{path}: live is still writing it (it is locked); {why}") from None
+            raise TwinError(f"{path}: cannot lock the telemetry log ({_why(e)})") from None
+        yield  # (the lock goes with the file)
+
+
 class DurableLog:
     """An append-only, locked, periodically fsynced log of the bytes received, with its break index."""
 
     def __init__(self, path: str):
         self.path, self.index_path, self.failed = path, breaks_path(path), None
         _check_log_path(path)
+        created = self._create_index()  # first: a log of ours always has one (a crash between leaves no stranger)
         try:
             self.file = open(path, "ab", buffering=0)  # unbuffered: a write is in the OS before anything else
         except OSError as e:
+            self._remove_index(created)
             raise TwinError(f"{path}: cannot open the telemetry log ({_why(e)})") from None
         try:
             fcntl.flock(self.file.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as e:
             self.file.close()
-            if e.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+            self._remove_index(created)
+            if _is_locked_error(e):
                 raise TwinError(f"{path}: another process is logging to it (it is locked); give each link its own --log") from None
             raise TwinError(f"{path}: cannot lock the telemetry log ({_why(e)})") from None
         try:
             self.index = self._open_index()
         except BaseException:
             self.file.close()
+            self._remove_index(created)
             raise
         self.size = os.fstat(self.file.fileno()).st_size
         self.marked = max(read_breaks(path), default=0)
@@ -92,17 +151,30 @@ class DurableLog:
                         path, self.index_path)
             self.end_stream("the previous run ended inside a line")
 
+    def _create_index(self) -> bool:
+        """The break index with its header, created whole if there is none; one that this program did not write is
+        refused. Whether this call created it."""
+        if os.path.lexists(self.index_path):
+            if not _index_is_ours(self.index_path):
+                raise TwinError(f"{self.index_path}: exists and was not written by {GENERATOR} (the break index of "
+                                f"{self.path}); move it away")
+            return False
+        header = {"generator": GENERATOR, "kind": BREAKS_KIND, "log": os.path.basename(self.path)}
+        try:
+            return create_whole(self.index_path, _json_line(header))
+        except OSError as e:
+            raise TwinError(f"{self.index_path}: cannot write the telemetry log's break index ({_why(e)})") from None
+
+    def _remove_index(self, created: bool) -> None:
+        if created:
+            with contextlib.suppress(OSError):
+                os.remove(self.index_path)
+
     def _open_index(self):
-        """The break index, appended (created with its header); one that this program did not write is refused."""
-        if os.path.lexists(self.index_path) and not (os.path.isfile(self.index_path) and not os.path.islink(self.index_path)
-                                                     and jsonl_is_ours(self.index_path)):
-            raise TwinError(f"{self.index_path}: exists and was not written by {GENERATOR} (the break index of "
-                            f"{self.path}); move it away")
+        """The break index, appended (a torn last mark ended first)."""
         try:
             index = open(self.index_path, "ab", buffering=0)
-            if index.tell() == 0:
-                index.write(_json_line({"generator": GENERATOR, "kind": BREAKS_KIND, "log": os.path.basename(self.path)}))
-            elif not ends_with_newline(self.index_path):
+            if not ends_with_newline(self.index_path):
                 index.write(b"\n")  # a mark torn by a power loss: ours, so it is ended rather than continued
         except OSError as e:
             raise TwinError(f"{self.index_path}: cannot write the telemetry log's break index ({_why(e)})") from None
