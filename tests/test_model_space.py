@@ -171,3 +171,26 @@ def test_a_ratio_out_of_range_is_said_without_a_stray_unit_and_grid_examples_are
     example = str(e.value).rsplit("cad.L=", 1)[1]
     p = space.parameter("cad.L")
     assert all(p.lower <= float(v) <= p.upper for v in example.split(",")), str(e.value)
+
+
+@pytest.mark.quick
+def test_a_parameter_the_step_cannot_represent_is_named_not_identifiable():
+    """motor.L_M: its lag L_M/R_M = 0.5 mH / 8.955 Ω = 55.8 µs (by hand) lies below the 1 ms step, so align refuses it,
+    graph --learn leaves it out and diagnose skips it, each saying why; at a step below the lag it is offered again."""
+    from tuner.align.diagnose import diagnose
+    from tuner.align.lap_time import align_lap_time
+    from tuner.search.space import TunerError
+    from tuner.sensitivity.ranges import default_factors
+    from twin.core.digital_twin import DigitalTwin
+    from twin.model.identifiability import unresolved
+
+    twin = DigitalTwin()
+    why = unresolved(twin.space.values, "motor.L_M")
+    assert "56 µs" in why and "1 ms physics step" in why
+    with pytest.raises(TunerError, match="motor.L_M: not identifiable"):
+        align_lap_time(twin, 13.0, "motor.L_M")
+    factors, left_out = default_factors(twin.space)
+    assert "motor.L_M" not in [f.address for f in factors] and "not identifiable" in left_out["motor.L_M"]
+    report = diagnose(twin, 20.0, candidates=("motor.L_M",))
+    assert not report.candidates and "not identifiable" in report.skipped[0]
+    assert unresolved({**twin.space.values, "motion.timestep": 2.5e-5}, "motor.L_M") is None

@@ -27,6 +27,7 @@ import numpy as np
 
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
+from twin.model.identifiability import unresolved
 from twin.model.space import ChangeCost
 from twin.telemetry.jsonl import Telemetry
 from tuner.align.lap_time import LapTimeAlignment, align_lap_time
@@ -178,6 +179,8 @@ def diagnose(twin: DigitalTwin, measured: float | None, candidates: Sequence[str
     for a in candidates:
         if a.startswith("cad.") and twin.robot_urdf is not None:
             skipped.append(f"{a}: the robot comes from a URDF; its geometry and masses are not parameters")
+        elif why := unresolved(twin.space.values, a):
+            skipped.append(why)
         else:
             usable.append(a)
     nominal_lap = run_laps(twin, [{}], seed=seed, nthread=nthread, keep_traces=False)[0]

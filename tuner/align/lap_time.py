@@ -49,6 +49,7 @@ import numpy as np
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
+from twin.model.identifiability import unresolved
 from twin.model.space import ChangeCost
 from tuner.search.space import TunerError
 
@@ -286,6 +287,8 @@ def align_lap_time(
     p = twin.space.parameter(address)
     if p.integer:
         raise TunerError(f"{address}: a whole-number parameter cannot be aligned to a lap time")
+    if why := unresolved(twin.space.values, address):
+        raise TunerError(why)
     twin.checked_values({address: twin.space.get(address)})  # a cad.* address of a URDF robot: refused here
     given = bounds is not None
     lo, hi = bounds if given else default_range(twin, address)

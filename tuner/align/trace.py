@@ -42,6 +42,7 @@ from mujoco import minimize
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapResult
+from twin.model.identifiability import unresolved
 from twin.model.space import ChangeCost
 from twin.telemetry.jsonl import Telemetry
 from tuner.align.lap_time import PHYSICAL_RANGE, align_lap_time
@@ -140,6 +141,8 @@ def align_telemetry(twin: DigitalTwin, tel: Telemetry, addresses: Sequence[str],
         p = twin.space.parameter(a)
         if p.cost is ChangeCost.REBUILD or p.integer:
             raise TunerError(f"{a}: alignment searches parameters that can differ between the laps of one batch")
+        if why := unresolved(twin.space.values, a):
+            raise TunerError(why)
         v = twin.space.get(a)
         if v <= 0:
             raise TunerError(f"{a}: trace alignment searches positive parameters (ratios to the current value)")

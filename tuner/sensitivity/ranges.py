@@ -21,6 +21,7 @@ import dataclasses
 import math
 from typing import Mapping, Sequence
 
+from twin.model.identifiability import unresolved
 from twin.model.space import ChangeCost, ModelSpace
 from tuner.search.space import TunerError
 
@@ -110,7 +111,8 @@ def default_factors(space: ModelSpace) -> tuple[list[Factor], dict[str, str]]:
     for every parameter left out."""
     factors, left_out = [], {}
     for a in space.addresses:
-        why = why_not_varied(space, a) or NUMERICAL.get(a) or DISCRETE.get(a) or INERT.get(a)
+        why = (why_not_varied(space, a) or NUMERICAL.get(a) or DISCRETE.get(a) or INERT.get(a)
+               or unresolved(space.values, a))
         if why is None and is_setting(a) and a not in GAINS:
             why = "a firmware setting, fixed on the robot: no physical range (vary it with --param and --bounds)"
         rng = None if why else physical_range(space, a)
