@@ -94,6 +94,28 @@ def voltages(twin: DigitalTwin, lap) -> tuple[np.ndarray, np.ndarray]:
     return cal, run
 
 
+def under_load(twin: DigitalTwin, phases: list[np.ndarray]) -> list[np.ndarray]:
+    """The voltages the motors got: each phase's commanded ones (duty × the nominal supply) times the supply under the
+    step's load (twin.model.power, which the C loop's lf_bus_voltage follows to 1e-12 V), found by stepping each phase
+    once from the start line in Python (untimed; the ceiling then replays them in one batch call)."""
+    mujoco.set_mjcb_control(None)
+    model, power, motor = twin.model(), twin.power(), twin.motor()
+    data = mujoco.MjData(model)
+    act = [model.actuator(n).id for n in MOTORS]
+    out = []
+    for u in phases:
+        mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
+        applied = np.empty_like(u)
+        for k, duty in enumerate(u / power.nominal_v):
+            mujoco.mj_step1(model, data)  # the state's velocities: the back-EMF the step's control sees
+            emf = [-model.actuator_biasprm[a, 2] / model.actuator_gainprm[a, 0] * data.actuator_velocity[a] for a in act]
+            bus, _ = power.bus_voltage(duty, emf, (motor.R_M, motor.R_M))
+            applied[k] = data.ctrl[act] = duty * bus
+            mujoco.mj_step2(model, data)
+        out.append(applied)
+    return out
+
+
 def ceiling(model: mujoco.MjModel, phases: list[np.ndarray]) -> tuple[float, np.ndarray]:
     """Replay the same voltages open-loop (no callback): the same physics, nothing else. (wall s, last qpos)."""
     mujoco.set_mjcb_control(None)
@@ -156,7 +178,7 @@ def main() -> None:
     model = twin.model()
     _, lap, _ = closed_loop(twin, keep_traces=True)  # warm-up; the ceiling replays this lap's voltages
     gc.disable()
-    cal, run = voltages(twin, lap)
+    cal, run = under_load(twin, list(voltages(twin, lap)))
     nstep, sim_s = len(cal) + len(run), (len(cal) + len(run)) * model.opt.timestep
     walls, ceils, insides, traced = [], [], [], []
     for _ in range(args.repeat):  # side by side, so all of a round see the same machine
