@@ -58,7 +58,8 @@ def add_parser(sub) -> None:
                    help="after each lap wait for the twin's next command (live --act sends one every lap): runs at "
                         "--speed then see the twin's decisions on the lap they were taken")
     p.add_argument("--idle-timeout", type=o.number(0.1, 86400.0), default=60.0, metavar="WALL_S",
-                   help="stop when nobody has read the stream for this long (no TCP client, a pty nobody reads)")
+                   help="stop when nobody has read the stream for this long (no TCP client, a pty nobody reads); in "
+                        "--lockstep, when the twin has given no sign of life (a command or a keep-alive) for this long")
     o.add_json(p)
     o.add_verbose(p)
     p.set_defaults(run=run)

@@ -4,6 +4,8 @@ it, and the stored-gains slots of its EEPROM, which the twin's ATmega328P progra
 * **Commands.** SET is checked against the range the firmware accepts (the model space's range of each gain),
   answered at once, and applied only at the next lap start; GET answers the gains in force; STORE writes them to
   EEPROM, reads them back and answers. A command repeating the last sequence number gets the last answer again.
+  A keep-alive (``$LFK``) is echoed at once and is no command: it changes nothing and is not counted in
+  :attr:`RobotEnd.received` (a robot in lockstep goes on waiting for the lap's command).
 * **Stored gains.** Two slots of ``"LFG2" | gen | seq | five gains | CRC-16/XMODEM`` (:data:`SLOT`, 30 bytes
   each). STORE writes the slot that does not hold the newest good set; at power-up the newest slot whose CRC
   checks wins, and the robot says which it took and how many failed (the BOOT event).
@@ -22,8 +24,8 @@ from lf_common.crc import CRC_BYTES, crc_ok, with_crc
 from lf_common.errors import LineFollowerError
 from lf_common.files import atomic_file
 from twin.errors import TwinError
-from twin.telemetry.wire import (GAIN_ADDRESSES, Boot, Command, LineSplitter, Reply, UnknownCommand, WireError, decode,
-                                 encode, gains_from_wire, gains_to_wire)
+from twin.telemetry.wire import (GAIN_ADDRESSES, Boot, Command, KeepAlive, LineSplitter, Reply, UnknownCommand, WireError,
+                                 decode, encode, gains_from_wire, gains_to_wire)
 
 log = logging.getLogger(__name__)
 
@@ -130,6 +132,7 @@ class RobotEnd:
         self.last: tuple[int, str] | None = None  # (seq, answer line) of the last command answered
         self.splitter = LineSplitter()
         self.received = 0  # commands decoded (answered or not)
+        self.keep_alives = 0  # keep-alives decoded (echoed unless commands are ignored)
 
     def boot(self, t: float = 0.0) -> str:
         """Power-up: load the newest good stored set; the BOOT line saying what it runs on."""
@@ -163,6 +166,11 @@ class RobotEnd:
                 cmd = Command(e.seq, "?")
             except WireError:
                 continue  # not a good line: the twin's wait for an answer will end
+            if isinstance(cmd, KeepAlive):
+                self.keep_alives += 1
+                if self.mode != "ignore":
+                    out.append(encode(cmd))
+                continue
             if not isinstance(cmd, Command):
                 continue
             self.received += 1
