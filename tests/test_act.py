@@ -10,6 +10,8 @@ test): there ``tuner.live.act.retune_gains`` is a stand-in that returns the gain
 from __future__ import annotations
 
 import json
+import os
+import signal
 import time
 
 import pytest
@@ -17,7 +19,7 @@ import sqlalchemy as sa
 
 import tuner.live.act
 from live_helpers import RUN, Pumped, emulator
-from tuner.history import log_laps, schema
+from tuner.history import actions_path, log_laps, read_journal, schema
 from tuner.live import ActOptions, Actor
 from tuner.live.retune import Retune
 from twin.cli.main import main
@@ -50,6 +52,11 @@ def live_json(capsys, *args) -> tuple[int, dict, str]:
     code = main(["live", *GAINS, "--json", *map(str, args)])
     out, err = capsys.readouterr()
     return code, json.loads(out), err
+
+
+def journaled(log) -> list[dict]:
+    """What the twin did, as kept beside ``log`` (commands too)."""
+    return [a for _, a in read_journal(actions_path(str(log)))]
 
 
 def kinds(doc: dict) -> list[str]:
@@ -314,3 +321,113 @@ def test_the_stored_state_is_kept_apart_in_the_history_database(tmp_path, stand_
                                    schema.gain_changes.c.stored)).all()
     history.close()
     assert [tuple(r) for r in rows] == [(robot.actor.current().seq, "confirmed", "not_stored")]
+
+
+@pytest.mark.quick
+@pytest.mark.parametrize("stop, allowed_s, said", [(False, 0.0, "the deadline (0 s allowed) would pass"),
+                                                  (True, 600.0, "the run is stopping")])
+def test_a_re_tune_out_of_time_or_stopped_proposes_nothing_and_says_so(stop, allowed_s, said):
+    """The plain gains fail at μ 0.6 (the drift test's aged robot), so a re-tune is needed; with no time left (or
+    the run stopping) it proposes nothing, and says which (before: no deadline, it always ran to its end)."""
+    from tuner.live.retune import retune_gains
+
+    twin = DigitalTwin()
+    twin.update({**PLAIN, "motion.mu": 0.6})
+    t0 = time.monotonic()
+    r = retune_gains(twin, "motion.mu", 0.55, 0.6, (0, 1), 20.0, deadline=time.monotonic() + allowed_s,
+                     stop=lambda: stop)
+    assert not r.changed and not r.in_time and r.gains == PLAIN and said in r.note
+    assert time.monotonic() - t0 < 60 and r.laps <= 6  # the first race only (3 values × 2 seeds)
+
+
+def test_a_re_tune_cut_by_its_deadline_answers_with_the_best_found_in_time(monkeypatch):
+    """A deadline that ends the descent after its first iteration: the last race runs on that iteration's point,
+    and the note says these are the best gains found by the deadline."""
+    import tuner.live.retune as retune
+
+    twin = DigitalTwin()
+    twin.update({**PLAIN, "motion.mu": 0.6})
+    iterations = []
+    real = retune.descend
+
+    def counted(f, z, o, on_iteration=None):
+        def each(it):
+            iterations.append(it)
+            on_iteration(it)
+        return real(f, z, o, on_iteration=each)
+
+    monkeypatch.setattr(retune, "descend", counted)
+    over = iter([False, False] + [True] * 100)  # in time up to the descent, out of time from its first iteration on
+    monkeypatch.setattr(retune._Clock, "over", lambda self, *a: next(over))
+    r = retune.retune_gains(twin, "motion.mu", 0.55, 0.6, (0, 1), 20.0, deadline=time.monotonic() + 1)
+    assert len(iterations) == 1 and not r.in_time and "the best found by the deadline" in r.note
+    assert r.changed == (r.gains != PLAIN)
+
+
+def test_a_robot_in_lockstep_keeps_waiting_through_a_re_tune_longer_than_its_idle_timeout(tmp_path, capsys,
+                                                                                        monkeypatch):
+    """The twin re-tunes for 4 s against a robot whose idle timeout is 1.5 s: its keep-alives keep the robot
+    (before, the robot quit 'no command from the twin for 1.5 s after a lap' and the twin sent its gains to
+    nobody)."""
+    new = {**PLAIN, "control.v_max": 1.2}
+
+    def slow(twin, address, low, high, seeds, timeout, **when):
+        time.sleep(4.0)
+        return Retune(dict(new), True, True, {address: (low, high)}, 7.0, 0, 4.0, "slow stand-in")
+
+    monkeypatch.setattr(tuner.live.act, "retune_gains", slow)
+    emu = robot(tmp_path, "--laps", 6, "--lockstep", "--set", "motion.mu=0.8", "--idle-timeout", 1.5,
+                "--echo", tmp_path / "echo.txt")
+    code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 6, "--act", "--retry", 3,
+                               "--log", tmp_path / "live.log")
+    _, out, emu_err = emu.wait(timeout=60)
+    assert code == 0 and doc["reconnects"] == 0 and doc["laps"] == 6, err
+    assert "stops" not in out + emu_err
+    assert doc["keep_alives"] >= 3 and "$LFK," in (tmp_path / "echo.txt").read_text()  # sent, and echoed
+    assert any(c["status"] in ("in_force", "confirmed") for c in doc["changes"])  # the robot ran the change
+    assert len(echoed_laps(tmp_path / "echo.txt")) == 6
+
+
+def test_a_normal_end_in_lockstep_is_no_dropped_link(tmp_path, capsys, monkeypatch):
+    """The robot hangs up after its last lap while the twin is still taking that lap in (slowed down here by 1 s a
+    lap): the twin stops reading at the last lap --laps watches, so the end is no reconnect and no dropped link in
+    the breaks file (before: '1 reconnects' and a 'dropped' break)."""
+    from tuner.live.live_twin import LiveTwin
+    from twin.link import breaks_path
+
+    real = LiveTwin._lap
+
+    def slowly(self, lap, replay):
+        time.sleep(1.0)
+        return real(self, lap, replay)
+
+    monkeypatch.setattr(LiveTwin, "_lap", slowly)
+    emu = robot(tmp_path, "--laps", 3, "--lockstep")
+    log = tmp_path / "live.log"
+    code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 3, "--act", "--retry", 3, "--log", log)
+    emu.wait(timeout=60)
+    assert code == 0 and doc["laps"] == 3 and doc["reconnects"] == 0, err
+    assert "dropped" not in open(breaks_path(str(log))).read()
+    laps_seen = [a["lap"] for a in journaled(log) if a["kind"] == "command"]  # (GETs, each with the laps seen)
+    assert 2 in laps_seen and 3 not in laps_seen  # one after each lap but the last
+
+
+def test_sigterm_during_a_re_tune_sends_nothing(tmp_path, capsys, monkeypatch):
+    """SIGTERM while the twin re-tunes: it ends with 143, the change it decided is withdrawn, and the robot never
+    sees a SET (before: the SET went out after the signal and the change stayed 'sent')."""
+    new = {**PLAIN, "control.v_max": 1.2}
+
+    def interrupted(twin, address, low, high, seeds, timeout, **when):
+        os.kill(os.getpid(), signal.SIGTERM)  # the user's Ctrl-C, mid-re-tune
+        time.sleep(1.0)
+        return Retune(dict(new), True, True, {address: (low, high)}, 7.0, 0, 1.0, "stand-in")
+
+    monkeypatch.setattr(tuner.live.act, "retune_gains", interrupted)
+    emu = robot(tmp_path, "--laps", 9, "--lockstep", "--set", "motion.mu=0.8", "--echo", tmp_path / "echo.txt",
+                "--idle-timeout", 5)
+    code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 9, "--act", "--log", tmp_path / "live.log")
+    emu.kill()
+    assert code == 143, err
+    assert [c["status"] for c in doc["changes"]] == ["withdrawn"] and "send" not in kinds(doc)
+    assert "SET" not in [a["op"] for a in journaled(tmp_path / "live.log") if a["kind"] == "command"]
+    assert ",ACK*" not in (tmp_path / "echo.txt").read_text()  # the robot was asked nothing to acknowledge

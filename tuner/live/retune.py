@@ -179,7 +179,7 @@ def retune_gains(twin: DigitalTwin, address: str, low: float, high: float, seeds
 
 
 def _allowed(clock: _Clock) -> str:
-    return f"{clock.deadline - clock.t0:.3g} s allowed"
+    return f"{max(0.0, clock.deadline - clock.t0):.3g} s allowed"
 
 
 def _late(clock: _Clock, where: str) -> str:
