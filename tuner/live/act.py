@@ -38,6 +38,7 @@ from typing import Callable
 
 import numpy as np
 
+from tuner.live.change import Change, Store, judge
 from tuner.live.retune import bounds_for, predict, retune_gains
 from twin.core.digital_twin import DigitalTwin
 from twin.telemetry.wire import (GAIN_ADDRESSES, KEEPALIVE_S, SEQ_MAX, Boot, Command, Header, KeepAlive, Reply, encode,
@@ -59,57 +60,6 @@ class ActOptions:
     tolerance: float = 0.02  # laps slower than predicted and than before by more than this fraction did worse
     store_tries: int = 3  # STOREs sent (the same one again) before the gains are reported not stored
     retune_deadline_s: float | None = None  # [s] wall clock a re-tune may take; None: one lap of the robot
-
-
-@dataclasses.dataclass
-class Change:
-    seq: int
-    kind: str  # retune or rollback
-    gains: dict[str, float]
-    previous: dict[str, float]
-    previous_seq: int
-    reason: str
-    predicted_lap_time_s: float | None
-    aligned: dict[str, float]
-    decided_lap: int
-    status: str = "decided"  # sent, acked, nak, silent, in_force, confirmed, rolled_back, superseded, withdrawn
-    stored: str | None = None  # None (no STORE asked), pending, stored, not_stored: what the robot boots on
-    deadline: float = 0.0
-    first_lap: int | None = None
-    before: list[dict] = dataclasses.field(default_factory=list)
-    after: list[dict] = dataclasses.field(default_factory=list)
-
-
-@dataclasses.dataclass
-class _Store:
-    """A STORE on its way: its sequence number, the confirmed change whose gains it keeps, tries and the deadline
-    of the last (None: not sent yet)."""
-
-    seq: int
-    change: Change
-    tries: int = 0
-    deadline: float | None = None
-
-
-def _times(entries: list[dict]) -> tuple[int, float | None]:
-    done = [e["robot_lap_time_s"] for e in entries if e["robot_lap_time_s"] is not None]
-    return len(entries) - len(done), (float(np.mean(done)) if done else None)
-
-
-def judge(change: Change, tolerance: float) -> tuple[bool, str]:
-    """(worse than before, why): the laps with the new gains against the prediction and the laps before them."""
-    fails_after, after = _times(change.after)
-    fails_before, before = _times(change.before)
-    if fails_after > fails_before:
-        return True, f"{fails_after} of {len(change.after)} laps failed with them, {fails_before} before"
-    if after is None:
-        return False, "every lap failed, as before"
-    p = change.predicted_lap_time_s
-    off = f"{after:.3f} s against {p:.3f} s predicted" if p else f"{after:.3f} s"
-    slower_than_predicted = p is not None and after > p * (1 + tolerance)
-    if slower_than_predicted and before is not None and after > before * (1 + tolerance):
-        return True, f"{off}, slower than the {before:.3f} s before"
-    return False, off + (f", {before:.3f} s before" if before is not None else "")
 
 
 class Actor:
@@ -147,7 +97,7 @@ class Actor:
         self.live = True  # False while the log is replayed: state follows, nothing is sent
         self.stopping: Callable[[], bool] = lambda: False  # the run is ending: nothing more goes out
         self.stored_seq: int | None = None  # the gains the robot boots on (None: not known yet)
-        self.store: _Store | None = None  # the STORE on its way
+        self.store: Store | None = None  # the STORE on its way
         self.keep_alives = 0  # keep-alives sent
 
     # --- what the robot says ------------------------------------------------------------------------------------
@@ -290,7 +240,7 @@ class Actor:
             c.status = "confirmed"
             self._act("confirm", c, outcome=why)
             if c.kind == "retune":
-                self.store = _Store(self._next_seq(), c)
+                self.store = Store(self._next_seq(), c)
                 c.stored = "pending"
                 self.pending_command = Command(self.store.seq, "STORE")
             return
