@@ -281,6 +281,9 @@ def test_an_unanswered_store_is_sent_again_then_reported_not_stored(stand_in_ret
     said = robot.actions[-1]
     assert (said["running_seq"], said["stored_seq"]) == (change.seq, 0) and "boots on gains #0" in said["outcome"]
     assert robot.actor.summary()[-1]["stored"] == "not_stored"
+    robot.actor.on_record(Reply(int(store.split(",")[1]), "ACK"), time.monotonic())  # answered after all
+    assert change.stored == "stored" and robot.actor.robot_state()["stored_seq"] == change.seq
+    assert "after all" in robot.actions[-1]["outcome"]
 
 
 @pytest.mark.quick
@@ -409,7 +412,7 @@ def test_a_normal_end_in_lockstep_is_no_dropped_link(tmp_path, capsys, monkeypat
     assert code == 0 and doc["laps"] == 3 and doc["reconnects"] == 0, err
     assert "dropped" not in open(breaks_path(str(log))).read()
     laps_seen = [a["lap"] for a in journaled(log) if a["kind"] == "command"]  # (GETs, each with the laps seen)
-    assert 2 in laps_seen and 3 not in laps_seen  # one after each lap but the last
+    assert laps_seen and max(laps_seen) < 3  # none after the last lap (how many before: the robot's pace decides)
 
 
 def test_sigterm_during_a_re_tune_sends_nothing(tmp_path, capsys, monkeypatch):

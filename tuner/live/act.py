@@ -98,6 +98,7 @@ class Actor:
         self.stopping: Callable[[], bool] = lambda: False  # the run is ending: nothing more goes out
         self.stored_seq: int | None = None  # the gains the robot boots on (None: not known yet)
         self.store: Store | None = None  # the STORE on its way
+        self.given_up: Store | None = None  # the last STORE reported not stored (a late ACK still counts)
         self.keep_alives = 0  # keep-alives sent
 
     # --- what the robot says ------------------------------------------------------------------------------------
@@ -145,6 +146,8 @@ class Actor:
                 "CONFIG": "the gains it was flashed with"}[b.source]
         why = f"; {b.bad} stored set(s) failed the CRC check" if b.bad else ""
         self.stored_seq = b.seq
+        if self.store is None and self.given_up is not None and b.seq == self.given_up.change.seq:
+            self.store, self.given_up = self.given_up, None  # reported not stored, yet it boots on them
         if self.store is not None:  # restarted with a STORE on its way: the BOOT line says whether it was written
             self._store_settled(b.seq == self.store.change.seq, "the robot restarted on its stored gains "
                                 f"#{b.seq}" + ("" if b.seq == self.store.change.seq else ": they were not stored"))
@@ -164,6 +167,10 @@ class Actor:
             return
         if self.store is not None and r.seq == self.store.seq:
             self._store_answer(r)
+            return
+        if self.given_up is not None and r.seq == self.given_up.seq and r.kind == "ACK":
+            self.store, self.given_up = self.given_up, None  # answered after all: the robot boots on them
+            self._store_settled(True, f"the robot stored gains #{self.store.change.seq} after all (a late answer)")
             return
         if change is None:
             if r.kind == "NAK":
@@ -376,6 +383,7 @@ class Actor:
     def _store_settled(self, stored: bool, why: str) -> None:
         """The STORE on its way has an outcome: the robot boots on the change's gains, or on what it did before."""
         st, self.store = self.store, None
+        self.given_up = None if stored else st
         st.change.stored = "stored" if stored else "not_stored"
         if stored:
             self.stored_seq = st.change.seq
