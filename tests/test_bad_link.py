@@ -22,6 +22,8 @@ ROWS = [
     (f"emulate {OVAL} --laps 1 --speed 100 --idle-timeout 5 --echo /dev/full", 2,
      ["/dev/full", "No space left on device"]),
     ("live --duration nan --port loop://", 2, ["outside"]),
+    ("live --act --retune-deadline 0 --port loop://", 2, ["--retune-deadline", "outside"]),
+    ("live --act --retune-deadline inf --port loop://", 2, ["--retune-deadline", "outside"]),
     ("live", 2, ["--port"]),
     ("live --replay {missing_dir}/log", 2, ["no such"]),
     # loop:// never carries a robot's line: it reopened forever

@@ -101,20 +101,30 @@ class _OutOfTime(Exception):
 
 
 class _Clock:
-    """The re-tune's time: what is left before ``deadline`` (``time.monotonic``), and what a lap costs so far."""
+    """The re-tune's time: what is left before ``deadline`` (``time.monotonic``), and what a lap costs (the
+    cheapest per lap of the batches so far: a larger batch shares its overhead among more laps, as the last race's
+    will)."""
 
     def __init__(self, deadline: float | None, stop: Callable[[], bool]):
         self.deadline, self.stop, self.t0 = deadline, stop, time.monotonic()
+        self.per_lap_s = 0.0
+        self.batch: tuple[float, int] = (self.t0, 0)
 
-    def over(self, laps_ahead: int = 0, laps_run: int = 1) -> bool:
-        """The run stops, or ``laps_ahead`` more laps (at the cost per lap of the ``laps_run`` so far) would end
-        after the deadline."""
+    def start(self, laps_so_far: int) -> None:
+        """A batch (or a run of batches) begins, after ``laps_so_far`` laps."""
+        self.batch = (time.monotonic(), laps_so_far)
+
+    def ran(self, laps_so_far: int) -> None:
+        t, n = self.batch
+        if laps_so_far > n:
+            cost = (time.monotonic() - t) / (laps_so_far - n)
+            self.per_lap_s = cost if not self.per_lap_s else min(self.per_lap_s, cost)
+
+    def over(self, laps_ahead: int = 0) -> bool:
+        """The run stops, or ``laps_ahead`` more laps would end after the deadline."""
         if self.stop():
             return True
-        if self.deadline is None:
-            return False
-        now = time.monotonic()
-        return now + laps_ahead * (now - self.t0) / max(1, laps_run) > self.deadline
+        return self.deadline is not None and time.monotonic() + laps_ahead * self.per_lap_s > self.deadline
 
 
 def _values(low: float, high: float, n: int) -> list[float]:
@@ -138,13 +148,17 @@ def retune_gains(twin: DigitalTwin, address: str, low: float, high: float, seeds
     limits = LapLimits(timeout_s=timeout_s)
     objective = LapObjective(base, space, limits=limits, envelope=envelope, risk=Risk.parse(ROBUST_RISK))
     z0 = space.to_unit(np.array([start[a] for a in GAIN_ADDRESSES]))
+    clock.start(0)
     objective(z0[None])
+    clock.ran(objective.laps)
     first = objective.at(z0)
     axes = {a: vs for a, vs in envelope.axes}
     final = Envelope.of({address: _values(low, high, FINAL_VALUES)},
                         range(seeds[0], seeds[0] + max(FINAL_SEEDS, len(seeds))))
     if all(r.completed for r in first.laps) and start == on_the_wire(current):
+        clock.start(0)
         kept = _race_all(twin, [start], final, limits)  # kept only if they finish on as many seeds as a change
+        clock.ran(len(kept))
         if all(r.completed for r in kept):
             return Retune(current, False, True, axes, max(r.lap_time_s for r in kept), objective.laps + len(kept),
                           time.perf_counter() - t0, "the gains in force finish every lap of the envelope")
@@ -154,14 +168,18 @@ def retune_gains(twin: DigitalTwin, address: str, low: float, high: float, seeds
         return Retune(current, False, False, axes, None, objective.laps, time.perf_counter() - t0,
                       f"{why}: no gains proposed, the robot keeps its gains", in_time=False)
 
-    if clock.over(last_race, objective.laps):
+    if clock.over(last_race):
         return none_in_time(_late(clock, "before the descent"))
+    clock.start(objective.laps)
     z, rescue = (z0, None) if all(r.completed for r in first.laps) else _slowed_start(objective, z0)
-    if clock.over(last_race, objective.laps):
+    clock.ran(objective.laps)
+    if clock.over(last_race):
         return none_in_time(_late(clock, "before the descent"))
+    clock.start(objective.laps)
 
     def in_time(it) -> None:
-        if clock.over(last_race, objective.laps):
+        clock.ran(objective.laps)
+        if clock.over(last_race):
             raise _OutOfTime(it.z)
 
     try:
