@@ -369,24 +369,24 @@ def test_a_re_tune_cut_by_its_deadline_answers_with_the_best_found_in_time(monke
 
 def test_a_robot_in_lockstep_keeps_waiting_through_a_re_tune_longer_than_its_idle_timeout(tmp_path, capsys,
                                                                                         monkeypatch):
-    """The twin re-tunes for 4 s against a robot whose idle timeout is 1.5 s: its keep-alives keep the robot
-    (before, the robot quit 'no command from the twin for 1.5 s after a lap' and the twin sent its gains to
-    nobody)."""
+    """The twin re-tunes for 6 s against a robot whose idle timeout is 2.5 s: its keep-alives (one a second) keep
+    the robot (before, the robot quit 'no command from the twin for 2.5 s after a lap' and the twin sent its gains
+    to nobody)."""
     new = {**PLAIN, "control.v_max": 1.2}
 
     def slow(twin, address, low, high, seeds, timeout, **when):
-        time.sleep(4.0)
-        return Retune(dict(new), True, True, {address: (low, high)}, 7.0, 0, 4.0, "slow stand-in")
+        time.sleep(6.0)
+        return Retune(dict(new), True, True, {address: (low, high)}, 7.0, 0, 6.0, "slow stand-in")
 
     monkeypatch.setattr(tuner.live.act, "retune_gains", slow)
-    emu = robot(tmp_path, "--laps", 6, "--lockstep", "--set", "motion.mu=0.8", "--idle-timeout", 1.5,
+    emu = robot(tmp_path, "--laps", 6, "--lockstep", "--set", "motion.mu=0.8", "--idle-timeout", 2.5,
                 "--echo", tmp_path / "echo.txt")
     code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 6, "--act", "--retry", 3,
                                "--log", tmp_path / "live.log")
     _, out, emu_err = emu.wait(timeout=60)
     assert code == 0 and doc["reconnects"] == 0 and doc["laps"] == 6, err
     assert "stops" not in out + emu_err
-    assert doc["keep_alives"] >= 3 and "$LFK," in (tmp_path / "echo.txt").read_text()  # sent, and echoed
+    assert doc["keep_alives"] >= 5 and "$LFK," in (tmp_path / "echo.txt").read_text()  # sent, and echoed
     assert any(c["status"] in ("in_force", "confirmed") for c in doc["changes"])  # the robot ran the change
     assert len(echoed_laps(tmp_path / "echo.txt")) == 6
 
