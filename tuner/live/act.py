@@ -59,7 +59,7 @@ class ActOptions:
     seeds: int = 2  # noise seeds per envelope value
     tolerance: float = 0.02  # laps slower than predicted and than before by more than this fraction did worse
     store_tries: int = 3  # STOREs sent (the same one again) before the gains are reported not stored
-    retune_deadline_s: float | None = None  # [s] wall clock a re-tune may take; None: every_laps laps of the robot
+    retune_deadline_s: float | None = None  # [s] wall clock a re-tune may take; None: horizon_laps laps of the robot
 
 
 class Actor:
@@ -271,9 +271,9 @@ class Actor:
             return
         low, high = self._envelope(value, trend)
         timeout = 2 * robot_lap_s if robot_lap_s else 60.0
-        # by default as long as the laps between two changes (no second change could come sooner; the robot runs
-        # on the gains in force meanwhile)
-        allowed = self.o.retune_deadline_s or (self.o.every_laps * robot_lap_s if robot_lap_s else timeout)
+        # by default horizon_laps laps of the robot: the envelope reaches as far as the parameter goes in as many
+        # laps, so gains that came later would be tuned for a robot already past it
+        allowed = self.o.retune_deadline_s or (self.o.horizon_laps * robot_lap_s if robot_lap_s else timeout)
         r = retune_gains(self.twin, self.address, low, high, tuple(range(self.seed, self.seed + self.o.seeds)), timeout,
                          deadline=time.monotonic() + allowed, stop=self.stopping)
         self._act("retune", None, aligned={self.address: value}, envelope=r.envelope, gains=r.gains, laps=r.laps,

@@ -67,9 +67,9 @@ def add_parser(sub) -> None:
                    help="how long to wait for the robot's answer to a command (a STORE unanswered is sent again, "
                         f"{lib.ACT_STORE_TRIES} times in all, then reported not stored)")
     p.add_argument("--retune-deadline", type=o.number(0.1, 86400.0), metavar="WALL_S",
-                   help="the longest a re-tune may take: the best gains found by then, or none (default: --act-every "
-                        "laps of the robot at its median lap time: no second change could come sooner, and the robot "
-                        "does not wait)")
+                   help="the longest a re-tune may take: the best gains found by then, or none (default: 10 laps of "
+                        "the robot at its median lap time, as far ahead as the gains are raced; the robot does not "
+                        "wait)")
     o.add_json(p)
     o.add_recording(p, "the comparison, lap by lap")
     o.add_verbose(p)
