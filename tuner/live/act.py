@@ -146,8 +146,8 @@ class Actor:
                 "CONFIG": "the gains it was flashed with"}[b.source]
         why = f"; {b.bad} stored set(s) failed the CRC check" if b.bad else ""
         self.stored_seq = b.seq
-        if self.store is None and self.given_up is not None and b.seq == self.given_up.change.seq:
-            self.store, self.given_up = self.given_up, None  # reported not stored, yet it boots on them
+        if self.given_up is not None and b.seq == self.given_up.change.seq:  # reported not stored, yet it boots on them
+            self._store_settled(True, "the robot restarted on them: they were stored after all", self.given_up)
         if self.store is not None:  # restarted with a STORE on its way: the BOOT line says whether it was written
             self._store_settled(b.seq == self.store.change.seq, "the robot restarted on its stored gains "
                                 f"#{b.seq}" + ("" if b.seq == self.store.change.seq else ": they were not stored"))
@@ -168,9 +168,9 @@ class Actor:
         if self.store is not None and r.seq == self.store.seq:
             self._store_answer(r)
             return
-        if self.given_up is not None and r.seq == self.given_up.seq and r.kind == "ACK":
-            self.store, self.given_up = self.given_up, None  # answered after all: the robot boots on them
-            self._store_settled(True, f"the robot stored gains #{self.store.change.seq} after all (a late answer)")
+        if self.given_up is not None and r.seq == self.given_up.seq and r.kind == "ACK":  # answered after all
+            self._store_settled(True, f"the robot stored gains #{self.given_up.change.seq} after all (a late answer)",
+                                self.given_up)
             return
         if change is None:
             if r.kind == "NAK":
@@ -226,9 +226,9 @@ class Actor:
         return self.changes[-1] if self.changes else None
 
     def busy(self) -> bool:
-        """A change is on its way or being confirmed: no re-alignment, no new change."""
+        """A change is on its way or being confirmed, or its STORE: no re-alignment, no new change."""
         c = self.current()
-        return c is not None and c.status in ("sent", "acked", "in_force")
+        return self.store is not None or (c is not None and c.status in ("sent", "acked", "in_force"))
 
     def observe(self, entry: dict, recent: list[dict]) -> None:
         """A lap (the live twin's entry): counted for the change in force, which may be judged now."""
@@ -295,7 +295,8 @@ class Actor:
         if self.refusals >= MAX_REFUSALS:
             return f"the robot refused the last {self.refusals} changes: the twin sends no more"
         if self.busy():
-            return f"change #{self.current().seq} is not confirmed yet"
+            return (f"change #{self.current().seq} is not confirmed yet" if self.store is None else
+                    f"the STORE of gains #{self.store.change.seq} is not answered yet")
         last = self.current()
         if last is not None and lap - last.decided_lap < self.o.every_laps:
             return f"the last change was decided {lap - last.decided_lap} laps ago (at most one every {self.o.every_laps})"
@@ -382,9 +383,12 @@ class Actor:
         else:
             self._store_settled(False, f"STORE #{st.seq} refused ({r.reason})")
 
-    def _store_settled(self, stored: bool, why: str) -> None:
-        """The STORE on its way has an outcome: the robot boots on the change's gains, or on what it did before."""
-        st, self.store = self.store, None
+    def _store_settled(self, stored: bool, why: str, st: Store | None = None) -> None:
+        """A STORE (default: the one on its way) has an outcome: the robot boots on the change's gains, or on what
+        it did before."""
+        st = st or self.store
+        if st is self.store:
+            self.store = None
         self.given_up = None if stored else st
         st.change.stored = "stored" if stored else "not_stored"
         if stored:

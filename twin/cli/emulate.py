@@ -52,8 +52,9 @@ def add_parser(sub) -> None:
                    help="the wire version it speaks: 2 (an id, answers commands) or 1 (an older robot: neither)")
     p.add_argument("--eeprom", metavar="FILE", help="its EEPROM (stored gains), kept in FILE across runs (created if missing)")
     p.add_argument("--commands", choices=COMMAND_MODES, default="answer",
-                   help="how it treats the twin's commands: answer them, refuse each SET and STORE (NAK,LOCKED), or "
-                        "ignore them (a receive line that is cut)")
+                   help="how it treats the twin's commands: answer them, refuse each SET and STORE (NAK,LOCKED), "
+                        "ignore them (a receive line that is cut), or answer all but STORE, which it neither writes nor "
+                        "answers (no-store: an EEPROM write that hangs)")
     p.add_argument("--lockstep", action="store_true",
                    help="after each lap wait for the twin's next command (live --act sends one every lap): runs at "
                         "--speed then see the twin's decisions on the lap they were taken")

@@ -31,7 +31,7 @@ ACT_STORE_TRIES = 3  # tuner.live.ActOptions.store_tries
 
 LINK_FSYNC_INTERVAL_S = 0.25  # twin.link.reader.FSYNC_INTERVAL_S
 LINK_RETRY_S = 30.0  # twin.link.reader.RETRY_S
-COMMAND_MODES = ("answer", "nak", "ignore")  # twin.link.robot_end.COMMAND_MODES
+COMMAND_MODES = ("answer", "nak", "ignore", "no-store")  # twin.link.robot_end.COMMAND_MODES
 
 FIRMWARE_BOARD = "pololu-3pi-atmega328p"  # twin.pil.firmware.BOARD
 TELEMETRY_EVERY = 2  # twin.pil.lap.TELEMETRY_EVERY

@@ -10,7 +10,8 @@ it, and the stored-gains slots of its EEPROM, which the twin's ATmega328P progra
   each). STORE writes the slot that does not hold the newest good set; at power-up the newest slot whose CRC
   checks wins, and the robot says which it took and how many failed (the BOOT event).
 * **Faults a test asks for**: ``commands="nak"`` refuses every SET and STORE (NAK,LOCKED: its owner locked the
-  gains), ``commands="ignore"`` answers nothing and applies nothing (its receive line is cut).
+  gains), ``commands="ignore"`` answers nothing and applies nothing (its receive line is cut),
+  ``commands="no-store"`` answers SET and GET but neither writes nor answers a STORE (an EEPROM write that hangs).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ SLOT = struct.Struct("<4sHH5i")  # magic, generation, seq, gains in thousandths;
 SLOT_SIZE = SLOT.size + CRC_BYTES  # 30 bytes
 SLOTS = 2
 IMAGE_SIZE = SLOT_SIZE * SLOTS  # the C robot's EEPROM file: the two slots
-COMMAND_MODES = ("answer", "nak", "ignore")
+COMMAND_MODES = ("answer", "nak", "ignore", "no-store")
 
 
 def pack_slot(generation: int, seq: int, gains: tuple[int, ...]) -> bytes:
@@ -117,7 +118,7 @@ class RobotEnd:
       flashed: the gains it was flashed with (by address).
       limits: {address: (lo, hi)} the firmware accepts for each gain.
       eeprom: its EEPROM image file, or None for an EEPROM that starts erased and is not kept.
-      commands: ``answer`` (default), ``nak`` or ``ignore`` (see the module docstring).
+      commands: ``answer`` (default), ``nak``, ``ignore`` or ``no-store`` (see the module docstring).
     """
 
     def __init__(self, robot_id: str, flashed: Mapping[str, float], limits: Mapping[str, tuple[float, float]],
@@ -180,7 +181,7 @@ class RobotEnd:
         return out
 
     def _answer(self, cmd: Command) -> str | None:
-        if self.mode == "ignore":
+        if self.mode == "ignore" or (self.mode == "no-store" and cmd.op == "STORE"):
             return None
         if self.last is not None and self.last[0] == cmd.seq:
             return self.last[1]  # sent again: the same answer, nothing done twice
