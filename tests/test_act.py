@@ -2,7 +2,10 @@
 command, so decisions land on the lap they were taken): a robot whose tyre grip drifts down keeps finishing its
 laps with ``--act`` where plain ``live`` sees failures, and the robot's own record (``--echo``) and the history
 database agree lap for lap; a corrupted EEPROM image boots on the last good set and the twin says so; a
-deliberately bad tune is rolled back; a robot that refuses (NAK) or stays silent keeps its gains.
+deliberately bad tune is rolled back; a robot that refuses (NAK) or stays silent keeps its gains; the twin's
+keep-alives keep a robot through a re-tune longer than its idle timeout; a robot's hang-up after its last lap is
+no dropped link; SIGTERM during a re-tune sends nothing; a STORE never answered is reported not stored everywhere
+(the actor's side of these: :mod:`test_act_transaction`).
 
 The bad tune, the NAK and the silence do not need a real re-tuning (the re-tuning itself is exercised by the drift
 test): there ``tuner.live.act.retune_gains`` is a stand-in that returns the gains it is given at once."""
@@ -10,6 +13,8 @@ test): there ``tuner.live.act.retune_gains`` is a stand-in that returns the gain
 from __future__ import annotations
 
 import json
+import os
+import signal
 import time
 
 import pytest
@@ -17,7 +22,7 @@ import sqlalchemy as sa
 
 import tuner.live.act
 from live_helpers import RUN, Pumped, emulator
-from tuner.history import log_laps, schema
+from tuner.history import actions_path, log_laps, read_journal, schema
 from tuner.live import ActOptions, Actor
 from tuner.live.retune import Retune
 from twin.cli.main import main
@@ -55,6 +60,11 @@ def live_json(capsys, *args) -> tuple[int, dict, str]:
     return code, json.loads(out), err
 
 
+def journaled(log) -> list[dict]:
+    """What the twin did, as kept beside ``log`` (commands too)."""
+    return [a for _, a in read_journal(actions_path(str(log)))]
+
+
 def kinds(doc: dict) -> list[str]:
     return [a["kind"] for a in doc["actions"] if a["kind"] != "command"]
 
@@ -69,7 +79,7 @@ def test_acting_keeps_a_drifting_robot_finishing_where_watching_sees_failures(tm
     db = f"sqlite:///{act_dir / 'history.sqlite'}"
     plain = Pumped([*RUN, "live", "--port", link(plain_robot), *GAINS, "--laps", str(LAPS), "--json"], cwd=plain_dir)
     acting = Pumped([*RUN, "live", "--port", link(act_robot), *GAINS, "--laps", str(LAPS), "--json", "--act",
-                     "--act-every", "3", "--db", db], cwd=act_dir)
+                     "--act-every", "3", "--db", db, "--retune-deadline", "600"], cwd=act_dir)  # (lockstep: it waits)
     results = {}
     for name, live, emu in (("plain", plain, plain_robot), ("act", acting, act_robot)):
         code, out, err = live.wait(timeout=400)
@@ -119,7 +129,7 @@ def stand_in_retune(monkeypatch):
     """retune_gains replaced: it proposes the given gains at once, as if raced over the whole envelope."""
     proposed = {}
 
-    def fake(twin, address, low, high, seeds, timeout, progress=None):
+    def fake(twin, address, low, high, seeds, timeout, **when):
         return Retune(dict(proposed), True, True, {address: (low, high)}, 7.0, 0, 0.0, "stand-in")
 
     monkeypatch.setattr(tuner.live.act, "retune_gains", fake)
@@ -184,3 +194,101 @@ def test_a_change_the_robot_reports_in_force_before_its_first_lap_header_is_foll
     assert change.status == "in_force" and twin.space.get("control.v_max") == 1.2
     actor.on_record(Header(8, 0.005, 2, "r7", change.seq), time.monotonic())
     assert [a["kind"] for a in actions].count("in_force") == 1 and "adopt" not in [a["kind"] for a in actions]
+
+
+def test_a_robot_in_lockstep_keeps_waiting_through_a_re_tune_longer_than_its_idle_timeout(tmp_path, capsys,
+                                                                                        monkeypatch):
+    """The twin re-tunes for 6 s against a robot whose idle timeout is 2.5 s: its keep-alives (one a second) keep
+    the robot (before, the robot quit 'no command from the twin for 2.5 s after a lap' and the twin sent its gains
+    to nobody)."""
+    new = {**PLAIN, "control.v_max": 1.2}
+
+    def slow(twin, address, low, high, seeds, timeout, **when):
+        time.sleep(6.0)
+        return Retune(dict(new), True, True, {address: (low, high)}, 7.0, 0, 6.0, "slow stand-in")
+
+    monkeypatch.setattr(tuner.live.act, "retune_gains", slow)
+    emu = robot(tmp_path, "--laps", 6, "--lockstep", "--set", "motion.mu=0.8", "--idle-timeout", 2.5,
+                "--echo", tmp_path / "echo.txt")
+    code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 6, "--act", "--retry", 3,
+                               "--log", tmp_path / "live.log")
+    _, out, emu_err = emu.wait(timeout=60)
+    assert code == 0 and doc["reconnects"] == 0 and doc["laps"] == 6, err
+    assert "stops" not in out + emu_err
+    assert doc["keep_alives"] >= 5 and "$LFK," in (tmp_path / "echo.txt").read_text()  # sent, and echoed
+    assert any(c["status"] in ("in_force", "confirmed") for c in doc["changes"])  # the robot ran the change
+    assert len(echoed_laps(tmp_path / "echo.txt")) == 6
+
+
+def test_a_normal_end_in_lockstep_is_no_dropped_link(tmp_path, capsys, monkeypatch):
+    """The robot hangs up after its last lap while the twin is still taking that lap in (slowed down here by 1 s a
+    lap): the twin stops reading at the last lap --laps watches, so the end is no reconnect and no dropped link in
+    the breaks file (before: '1 reconnects' and a 'dropped' break)."""
+    from tuner.live.live_twin import LiveTwin
+    from twin.link import breaks_path
+
+    real = LiveTwin._lap
+
+    def slowly(self, lap, replay):
+        time.sleep(1.0)
+        return real(self, lap, replay)
+
+    monkeypatch.setattr(LiveTwin, "_lap", slowly)
+    emu = robot(tmp_path, "--laps", 3, "--lockstep")
+    log = tmp_path / "live.log"
+    code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 3, "--act", "--retry", 3, "--log", log)
+    emu.wait(timeout=60)
+    assert code == 0 and doc["laps"] == 3 and doc["reconnects"] == 0, err
+    assert "dropped" not in open(breaks_path(str(log))).read()
+    laps_seen = [a["lap"] for a in journaled(log) if a["kind"] == "command"]  # (GETs, each with the laps seen)
+    assert laps_seen and max(laps_seen) < 3  # none after the last lap (how many before: the robot's pace decides)
+
+
+def test_sigterm_during_a_re_tune_sends_nothing(tmp_path, capsys, monkeypatch):
+    """SIGTERM while the twin re-tunes: it ends with 143, the change it decided is withdrawn, and the robot never
+    sees a SET (before: the SET went out after the signal and the change stayed 'sent')."""
+    new = {**PLAIN, "control.v_max": 1.2}
+
+    def interrupted(twin, address, low, high, seeds, timeout, **when):
+        os.kill(os.getpid(), signal.SIGTERM)  # the user's Ctrl-C, mid-re-tune
+        time.sleep(1.0)
+        return Retune(dict(new), True, True, {address: (low, high)}, 7.0, 0, 1.0, "stand-in")
+
+    monkeypatch.setattr(tuner.live.act, "retune_gains", interrupted)
+    emu = robot(tmp_path, "--laps", 9, "--lockstep", "--set", "motion.mu=0.8", "--echo", tmp_path / "echo.txt",
+                "--idle-timeout", 5)
+    code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 9, "--act", "--log", tmp_path / "live.log")
+    emu.kill()
+    assert code == 143, err
+    assert [c["status"] for c in doc["changes"]] == ["withdrawn"] and "send" not in kinds(doc)
+    assert "SET" not in [a["op"] for a in journaled(tmp_path / "live.log") if a["kind"] == "command"]
+    assert ",ACK*" not in (tmp_path / "echo.txt").read_text()  # the robot was asked nothing to acknowledge
+
+
+def test_a_store_the_robot_never_answers_is_reported_not_stored_everywhere(tmp_path, capsys, stand_in_retune):
+    """The robot runs the confirmed change but its EEPROM write hangs (emulate --commands no-store): the STORE goes
+    out 3 times, then the change is confirmed but not stored in the journal, the database and --json, and the
+    robot's state says it boots on #0, as its EEPROM image does (before: 'confirmed' like a stored change)."""
+    stand_in_retune.update({**PLAIN, "control.v_max": 1.2})
+    emu = robot(tmp_path, "--laps", 20, "--lockstep", "--set", "motion.mu=0.8", "--commands", "no-store",
+                "--eeprom", tmp_path / "eeprom.bin")
+    db = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 20, "--act", "--ack-timeout", 0.3, "--db", db,
+                               "--log", tmp_path / "live.log")
+    _, _, emu_err = emu.wait(timeout=60)
+    assert code == 0, err + emu_err
+    change = doc["changes"][0]
+    assert (change["status"], change["stored"]) == ("confirmed", "not_stored")
+    assert {(c["status"], c["stored"]) for c in doc["changes"]} == {("confirmed", "not_stored")}  # (more re-tunes)
+    assert doc["robot_state"] == {"running_seq": doc["changes"][-1]["seq"], "stored_seq": 0, "store_pending": None}
+    stores = [a["seq"] for a in journaled(tmp_path / "live.log") if a["kind"] == "command" and a["op"] == "STORE"]
+    assert stores[:3] == [stores[0]] * 3  # the same STORE, 3 times
+    said = next(a for a in doc["actions"] if a["kind"] == "not_stored")
+    assert "boots on gains #0" in said["outcome"] and "act: not_stored" in err
+    engine = sa.create_engine(db)
+    with engine.connect() as c:
+        row = c.execute(sa.select(schema.gain_changes.c.status, schema.gain_changes.c.stored)
+                        .where(schema.gain_changes.c.seq == change["seq"])).one()
+    engine.dispose()
+    assert tuple(row) == ("confirmed", "not_stored")
+    assert not (tmp_path / "eeprom.bin").exists()  # nothing was ever stored (the image is made at the first write)

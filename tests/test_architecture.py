@@ -217,7 +217,7 @@ def test_the_values_the_flags_quote_are_the_libraries_own():
         "SENSITIVITY_TRAJECTORIES": (lib.SENSITIVITY_TRAJECTORIES, TRAJECTORIES),
         "SENSITIVITY_MAX_SOBOL": (lib.SENSITIVITY_MAX_SOBOL, MAX_SOBOL),
         "ACT_EVERY_LAPS": (lib.ACT_EVERY_LAPS, act.every_laps), "ACT_CONFIRM_LAPS": (lib.ACT_CONFIRM_LAPS, act.confirm_laps),
-        "ACT_ACK_TIMEOUT_S": (lib.ACT_ACK_TIMEOUT_S, act.ack_timeout_s),
+        "ACT_ACK_TIMEOUT_S": (lib.ACT_ACK_TIMEOUT_S, act.ack_timeout_s), "ACT_STORE_TRIES": (lib.ACT_STORE_TRIES, act.store_tries),
         "LINK_FSYNC_INTERVAL_S": (lib.LINK_FSYNC_INTERVAL_S, FSYNC_INTERVAL_S), "LINK_RETRY_S": (lib.LINK_RETRY_S, RETRY_S),
         "COMMAND_MODES": (lib.COMMAND_MODES, COMMAND_MODES), "FIRMWARE_BOARD": (lib.FIRMWARE_BOARD, BOARD),
         "TELEMETRY_EVERY": (lib.TELEMETRY_EVERY, TELEMETRY_EVERY), "FMU_PLANT": (lib.FMU_PLANT, PLANT),

@@ -25,6 +25,8 @@ ROWS = [
     (f"emulate {OVAL} --laps 1 --speed 100 --idle-timeout 5 --eeprom {{sixty.bin}}", 2,
      ["{sixty.bin}", "not this robot's EEPROM image", "neither of its 2 slots"]),
     ("live --duration nan --port loop://", 2, ["outside"]),
+    ("live --act --retune-deadline 0 --port loop://", 2, ["--retune-deadline", "outside"]),
+    ("live --act --retune-deadline inf --port loop://", 2, ["--retune-deadline", "outside"]),
     ("live", 2, ["--port"]),
     ("live --replay {missing_dir}/log", 2, ["no such"]),
     # loop:// never carries a robot's line: it reopened forever

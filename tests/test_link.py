@@ -312,3 +312,38 @@ def test_the_tcp_emulator_stops_when_nobody_reads(tmp_path):
         emu.kill()
     assert code == 0 and time.monotonic() - t0 < 20
     assert "robot emulator stops" in out
+
+
+@pytest.mark.quick
+def test_a_robot_in_lockstep_waits_on_while_the_twin_gives_signs_of_life():
+    """Lockstep, idle timeout 0.3 s: the twin sends a keep-alive every 0.1 s for 1 s, then a command. The robot
+    echoes each keep-alive and waits on (before, it quit 0.3 s after its lap: a keep-alive was no command); once
+    the signs of life stop, it quits 0.3 s after the last one."""
+    from twin.link.emulator import CommandPort, NoReader
+    from twin.link.robot_end import RobotEnd
+    from twin.telemetry.wire import Command, KeepAlive
+
+    def twin(lines: list[tuple[float, bytes]]):
+        t0 = time.monotonic()
+
+        def receive(timeout: float) -> bytes:
+            time.sleep(timeout)
+            due = [line for t, line in lines if t <= time.monotonic() - t0]
+            del lines[:len(due)]
+            return b"".join(due)
+
+        return receive
+
+    gains = {"control.v_max": 1.0, "control.kb": 0.1, "control.kp": 30.0, "control.ki": 0.0, "control.kd": 1.0}
+    alive = [(0.1 * k, encode(KeepAlive(k)).encode()) for k in range(1, 11)]
+    port = CommandPort(twin([*alive, (1.1, encode(Command(1, "GET")).encode())]), RobotEnd("r7", gains, {}), True, 0.3)
+    answers: list[str] = []
+    t0 = time.monotonic()
+    port.await_command(answers.append)
+    assert time.monotonic() - t0 >= 1.0 and answers[-1].startswith("$LFR,1,GAINS")
+    assert [decode(a) for a in answers[:-1]] == [KeepAlive(k) for k in range(1, 11)]
+    port = CommandPort(twin(alive[:5]), RobotEnd("r7", gains, {}), True, 0.3)
+    t0 = time.monotonic()
+    with pytest.raises(NoReader, match="no sign of life from the twin for 0.3 s"):
+        port.await_command(answers.append)
+    assert 0.5 + 0.3 <= time.monotonic() - t0 < 0.5 + 0.3 + 0.5

@@ -1,7 +1,8 @@
 """The command link (wire version 2, twin.telemetry.wire; the robot's end, twin.link.robot_end): records round-trip
 and version 1 lines are still read; a robot applies gains only between laps, answers every command once (a repeat
 gets the same answer), refuses what it cannot take; stored gains carry a CRC and a robot whose newest set fails the
-check boots on the one before and says so; a drift is linear and checked."""
+check boots on the one before and says so; a keep-alive is echoed and is no command; a drift is linear and
+checked."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ from twin.errors import TwinError
 from twin.link.emulator import Drift, check_drifts, drifted
 from twin.link.robot_end import IMAGE_SIZE, SLOT_SIZE, EepromFile, RobotEnd, read_stored
 from twin.telemetry.laps import LapAssembler
-from twin.telemetry.wire import (Boot, Command, Event, Header, Reply, UnknownCommand, WireError, decode, encode, frame,
-                                 gains_to_wire, on_the_wire)
+from twin.telemetry.wire import (Boot, Command, Event, Header, KeepAlive, Reply, UnknownCommand, WireError, decode, encode,
+                                 frame, gains_to_wire, on_the_wire)
 
 pytestmark = pytest.mark.quick
 
@@ -66,6 +67,24 @@ def test_gains_change_only_between_laps_and_every_command_is_answered_once():
         Reply(1, "NAK", "LOCKED"), Reply(2, "NAK", "LOCKED")]
     deaf = robot(commands="ignore")
     assert send(deaf, Command(1, "SET", gains_to_wire(NEW))) == [] and deaf.lap_start() == (FLASHED, 0)
+
+
+def test_a_keep_alive_is_echoed_and_is_no_command():
+    """The twin's keep-alive ($LFK,n, checksum by hand: L^F^K^,^1 = 0x4C^0x46^0x4B^0x2C^0x31 = 0x5C) is answered at
+    once with the same line; it changes nothing, does not replace the last command's answer, and is not counted as a
+    command (a robot in lockstep waits on for the lap's)."""
+    assert encode(KeepAlive(1)) == "$LFK,1*5C\n" and decode("$LFK,1*5C") == KeepAlive(1)
+    for bad in (frame(["LFK", 0]), frame(["LFK", 65536]), frame(["LFK"])):
+        with pytest.raises(WireError):
+            decode(bad)
+    r = robot()
+    assert send(r, Command(1, "SET", gains_to_wire(NEW))) == [Reply(1, "ACK")]
+    assert send(r, KeepAlive(7), KeepAlive(8)) == [KeepAlive(7), KeepAlive(8)]
+    assert (r.received, r.keep_alives) == (1, 2)
+    assert send(r, Command(1, "SET", gains_to_wire(NEW))) == [Reply(1, "ACK")]  # still the repeat of the last command
+    assert r.lap_start() == (NEW, 1)
+    assert robot(commands="nak").receive(encode(KeepAlive(3)).encode()) == [encode(KeepAlive(3))]
+    assert robot(commands="ignore").receive(encode(KeepAlive(3)).encode()) == []  # a cut receive line
 
 
 def test_stored_gains_survive_a_power_cycle_and_a_corrupted_set_falls_back_to_the_one_before(tmp_path):

@@ -20,7 +20,7 @@ from twin.telemetry.laps import RobotLap
 
 DEFAULT_PITCH_M = 0.009525  # QTR-8's, when the journal does not say
 CHANGE_STATUS = {"send": "sent", "ack": "acked", "nak": "nak", "silent": "silent", "in_force": "in_force",
-                 "confirm": "confirmed", "rollback": "rolled_back", "superseded": "superseded"}
+                 "confirm": "confirmed", "rollback": "rolled_back", "superseded": "superseded", "withdraw": "withdrawn"}
 
 
 def robot_name(robot: str | None, log_path: str) -> str:
@@ -105,6 +105,8 @@ class LogIngest:
                         predicted_lap_time_s=a.get("predicted_lap_time_s"), outcome=a.get("outcome"),
                         decided_at=a.get("time"))
             return
+        if "stored" in a and a.get("change") is not None:  # what the robot boots on: apart from what it runs
+            c.execute(s.gain_changes.update().where(s.gain_changes.c.source == key).values(stored=a["stored"]))
         if kind in CHANGE_STATUS and a.get("change") is not None:
             values = {"status": CHANGE_STATUS[kind], "outcome": a.get("outcome")}
             if kind == "send":

@@ -68,7 +68,7 @@ def _changes(c, robot_id: int, offsets: dict) -> list[dict]:
         for k in ("decided_lap", "first_lap"):
             if d[k] is not None:
                 d[k] += base
-        out.append({k: d[k] for k in ("seq", "kind", "status", "decided_lap", "first_lap", "gains", "reason",
+        out.append({k: d[k] for k in ("seq", "kind", "status", "stored", "decided_lap", "first_lap", "gains", "reason",
                                       "predicted_lap_time_s", "nak_reason", "outcome")})
     # in the order of the robot's laps (not of the rows), whatever order the logs were rebuilt in
     return sorted(out, key=lambda ch: (math.inf if ch["decided_lap"] is None else ch["decided_lap"], ch["seq"],

@@ -10,8 +10,9 @@ fleet) with other programs' tables.
   aligned values at the time.
 * ``lf_alignments``: each alignment: the laps it measured (``first_lap`` to ``lap``), the value, its consistent
   interval, what it explained; ``estimated`` marks the live twin's estimate from failed laps, which is no evidence.
-* ``lf_gain_changes``: each change of gains the twin decided: sent, answered (ACK, NAK and why, silence), in force,
-  confirmed or rolled back, with the prediction it was sent on.
+* ``lf_gain_changes``: each change of gains the twin decided: sent (or withdrawn), answered (ACK, NAK and why,
+  silence), in force, confirmed or rolled back, with the prediction it was sent on; apart from that, whether the
+  robot stored it (``stored``: the gains it boots on).
 * ``lf_events``: every other action of the live twin (boot, adopt, hold, retune, stored, …), as it was journaled.
 
 Rows that come from a telemetry log carry a ``source`` key (``<log>#lap7``, ``<log>#j42``): writing one again
@@ -101,6 +102,7 @@ gain_changes = _of_a_run(
     sa.Column("decided_lap", sa.Integer),
     sa.Column("first_lap", sa.Integer),
     sa.Column("status", sa.String(16), nullable=False),
+    sa.Column("stored", sa.String(16)),  # None (no STORE asked), pending, stored, not_stored (migration 0003)
     sa.Column("gains", sa.JSON),
     sa.Column("previous", sa.JSON),
     sa.Column("previous_seq", sa.Integer),

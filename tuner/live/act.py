@@ -16,6 +16,15 @@ value as a change that was rolled back. After each lap the twin sends exactly on
 reading the gains back: a robot that reset or was changed by hand is seen within a lap), which is also what a
 robot emulated in lockstep waits for.
 
+The acting loop is a transaction: nothing goes out once the run is stopping (``stopping()``: Ctrl-C, SIGTERM,
+``--duration``, or the last lap ``--laps`` watches has come): a change decided then is ``withdrawn``, never sent, and
+a STORE not sent leaves the gains unstored. A STORE is acknowledged or sent again (the same sequence number: a
+robot that did store answers again without storing twice) up to ``store_tries`` times, each waiting
+``ack_timeout_s``; failing that the change is reported ``not_stored``. The robot's two states are kept apart: the
+gains it runs (``running_seq``: a lap header or its answer to GET) and the gains it boots on (``stored_seq``: its
+BOOT line, or an acknowledged STORE; None while unknown); every action carries both, each change its ``stored``
+state (None: not asked; ``pending``, ``stored``, ``not_stored``).
+
 Every action (what, why, the outcome) goes to ``on_action``: the journal beside the log, the history database,
 the human lines and ``--json``.
 """
@@ -29,10 +38,11 @@ from typing import Callable
 
 import numpy as np
 
+from tuner.live.change import Change, Store, judge
 from tuner.live.retune import bounds_for, predict, retune_gains
 from twin.core.digital_twin import DigitalTwin
-from twin.telemetry.wire import (GAIN_ADDRESSES, SEQ_MAX, Boot, Command, Header, Reply, encode, gains_from_wire,
-                                 gains_to_wire, on_the_wire)
+from twin.telemetry.wire import (GAIN_ADDRESSES, KEEPALIVE_S, SEQ_MAX, Boot, Command, Header, KeepAlive, Reply, encode,
+                                 gains_from_wire, gains_to_wire, on_the_wire)
 
 log = logging.getLogger(__name__)
 
@@ -48,45 +58,8 @@ class ActOptions:
     horizon_laps: int = 10  # … or as far as the parameter's trend goes in this many laps
     seeds: int = 2  # noise seeds per envelope value
     tolerance: float = 0.02  # laps slower than predicted and than before by more than this fraction did worse
-
-
-@dataclasses.dataclass
-class Change:
-    seq: int
-    kind: str  # retune or rollback
-    gains: dict[str, float]
-    previous: dict[str, float]
-    previous_seq: int
-    reason: str
-    predicted_lap_time_s: float | None
-    aligned: dict[str, float]
-    decided_lap: int
-    status: str = "decided"  # sent, acked, nak, silent, in_force, confirmed, rolled_back, superseded
-    deadline: float = 0.0
-    first_lap: int | None = None
-    before: list[dict] = dataclasses.field(default_factory=list)
-    after: list[dict] = dataclasses.field(default_factory=list)
-
-
-def _times(entries: list[dict]) -> tuple[int, float | None]:
-    done = [e["robot_lap_time_s"] for e in entries if e["robot_lap_time_s"] is not None]
-    return len(entries) - len(done), (float(np.mean(done)) if done else None)
-
-
-def judge(change: Change, tolerance: float) -> tuple[bool, str]:
-    """(worse than before, why): the laps with the new gains against the prediction and the laps before them."""
-    fails_after, after = _times(change.after)
-    fails_before, before = _times(change.before)
-    if fails_after > fails_before:
-        return True, f"{fails_after} of {len(change.after)} laps failed with them, {fails_before} before"
-    if after is None:
-        return False, "every lap failed, as before"
-    p = change.predicted_lap_time_s
-    off = f"{after:.3f} s against {p:.3f} s predicted" if p else f"{after:.3f} s"
-    slower_than_predicted = p is not None and after > p * (1 + tolerance)
-    if slower_than_predicted and before is not None and after > before * (1 + tolerance):
-        return True, f"{off}, slower than the {before:.3f} s before"
-    return False, off + (f", {before:.3f} s before" if before is not None else "")
+    store_tries: int = 3  # STOREs sent (the same one again) before the gains are reported not stored
+    retune_deadline_s: float | None = None  # [s] wall clock a re-tune may take; None: horizon_laps laps of the robot
 
 
 class Actor:
@@ -120,10 +93,14 @@ class Actor:
         self.retune_progress: Callable[[int, int], None] | None = None  # (done, planned) steps of each re-tune
         self.rolled_back_for: set[float] = set()
         self.pending_command: Command | None = None
-        self.pending_store: int | None = None  # the STORE sent after the last confirmation
         self.lap = 0  # laps seen so far
         self.asked = False  # a GET went out since the robot last (re)started
         self.live = True  # False while the log is replayed: state follows, nothing is sent
+        self.stopping: Callable[[], bool] = lambda: False  # the run is ending: nothing more goes out
+        self.stored_seq: int | None = None  # the gains the robot boots on (None: not known yet)
+        self.store: Store | None = None  # the STORE on its way
+        self.given_up: Store | None = None  # the last STORE reported not stored (a late ACK still counts)
+        self.keep_alives = 0  # keep-alives sent
 
     # --- what the robot says ------------------------------------------------------------------------------------
 
@@ -169,6 +146,12 @@ class Actor:
         what = {"STORED": "its stored gains", "BACKUP": "its last good stored gains",
                 "CONFIG": "the gains it was flashed with"}[b.source]
         why = f"; {b.bad} stored set(s) failed the CRC check" if b.bad else ""
+        self.stored_seq = b.seq
+        if self.given_up is not None and b.seq == self.given_up.change.seq:  # reported not stored, yet it boots on them
+            self._store_settled(True, "the robot restarted on them: they were stored after all", self.given_up)
+        if self.store is not None:  # restarted with a STORE on its way: the BOOT line says whether it was written
+            self._store_settled(b.seq == self.store.change.seq, "the robot restarted on its stored gains "
+                                f"#{b.seq}" + ("" if b.seq == self.store.change.seq else ": they were not stored"))
         self._act("boot", None, seq=b.seq, gains=gains, source=b.source, bad=b.bad,
                   outcome=f"robot {self.robot or '?'} booted on {what} (#{b.seq}){why}", warn=bool(b.bad))
         current = self.current()
@@ -183,11 +166,16 @@ class Actor:
         if r.kind == "GAINS":
             self._gains_read_back(r)
             return
+        if self.store is not None and r.seq == self.store.seq:
+            self._store_answer(r)
+            return
+        if self.given_up is not None and r.seq == self.given_up.seq and r.kind == "ACK":  # answered after all
+            self._store_settled(True, f"the robot stored gains #{self.given_up.change.seq} after all (a late answer)",
+                                self.given_up)
+            return
         if change is None:
             if r.kind == "NAK":
                 self._act("nak", None, seq=r.seq, reason_code=r.reason, outcome=f"command #{r.seq} refused ({r.reason})")
-            elif self.pending_store == r.seq:
-                self._act("stored", None, seq=r.seq, outcome="the robot stored the confirmed gains in its EEPROM")
             return
         if change.status != "sent":
             return  # answered after it was given up on, or answered again
@@ -216,7 +204,16 @@ class Actor:
         self.in_force_seq = r.in_force
 
     def idle(self, now: float) -> None:
-        """No answer by the deadline: the robot keeps its gains."""
+        """No answer by the deadline: the robot keeps its gains; a STORE is sent again, or reported not stored."""
+        st = self.store
+        if st is not None and st.deadline is not None and now > st.deadline:
+            if st.tries < self.o.store_tries and self.live and not self.stopping():
+                self._act("store_retry", st.change, store_seq=st.seq, warn=True,
+                          outcome=f"no answer to STORE #{st.seq} within {self.o.ack_timeout_s:g} s: sent again "
+                                  f"({st.tries + 1} of {self.o.store_tries})")
+                self._send_store()
+            else:
+                self._store_settled(False, f"no answer to STORE #{st.seq} after {st.tries} tries")
         change = self.current()
         if change is not None and change.status == "sent" and now > change.deadline:
             change.status = "silent"
@@ -230,9 +227,9 @@ class Actor:
         return self.changes[-1] if self.changes else None
 
     def busy(self) -> bool:
-        """A change is on its way or being confirmed: no re-alignment, no new change."""
+        """A change is on its way or being confirmed, or its STORE: no re-alignment, no new change."""
         c = self.current()
-        return c is not None and c.status in ("sent", "acked", "in_force")
+        return self.store is not None or (c is not None and c.status in ("sent", "acked", "in_force"))
 
     def observe(self, entry: dict, recent: list[dict]) -> None:
         """A lap (the live twin's entry): counted for the change in force, which may be judged now."""
@@ -251,8 +248,9 @@ class Actor:
             c.status = "confirmed"
             self._act("confirm", c, outcome=why)
             if c.kind == "retune":
-                self.pending_command = Command(self._next_seq(), "STORE")
-                self.pending_store = self.pending_command.seq
+                self.store = Store(self._next_seq(), c)
+                c.stored = "pending"
+                self.pending_command = Command(self.store.seq, "STORE")
             return
         c.status = "rolled_back"
         self.rolled_back_for.add(round(c.aligned.get(self.address, float("nan")), 6))
@@ -269,12 +267,20 @@ class Actor:
         if hold:
             self._act("hold", None, outcome=hold, aligned={self.address: value})
             return
+        if self.stopping():
+            self._act("hold", None, outcome="the run is stopping: no re-tune, nothing sent", aligned={self.address: value})
+            return
         low, high = self._envelope(value, trend)
         timeout = 2 * robot_lap_s if robot_lap_s else 60.0
+        # by default horizon_laps laps of the robot: the envelope reaches as far as the parameter goes in as many
+        # laps, so gains that came later would be tuned for a robot already past it
+        allowed = self.o.retune_deadline_s or (self.o.horizon_laps * robot_lap_s if robot_lap_s else timeout)
         r = retune_gains(self.twin, self.address, low, high, tuple(range(self.seed, self.seed + self.o.seeds)), timeout,
+                         deadline=time.monotonic() + allowed, stop=self.stopping,
                          progress=self.retune_progress)
         self._act("retune", None, aligned={self.address: value}, envelope=r.envelope, gains=r.gains, laps=r.laps,
-                  wall_s=round(r.wall_s, 2), outcome=r.note + ("" if r.changed else "; no change"))
+                  wall_s=round(r.wall_s, 2), deadline_s=round(allowed, 2), in_time=r.in_time,
+                  outcome=r.note + ("" if r.changed else "; no change"))
         if not r.changed:
             return
         if not r.completes:
@@ -291,7 +297,8 @@ class Actor:
         if self.refusals >= MAX_REFUSALS:
             return f"the robot refused the last {self.refusals} changes: the twin sends no more"
         if self.busy():
-            return f"change #{self.current().seq} is not confirmed yet"
+            return (f"change #{self.current().seq} is not confirmed yet" if self.store is None else
+                    f"the STORE of gains #{self.store.change.seq} is not answered yet")
         last = self.current()
         if last is not None and lap - last.decided_lap < self.o.every_laps:
             return f"the last change was decided {lap - last.decided_lap} laps ago (at most one every {self.o.every_laps})"
@@ -325,11 +332,17 @@ class Actor:
         self.known[c.seq] = gains
         self.pending_command = Command(c.seq, "SET", gains_to_wire(gains))
         self._act("decide", c, outcome=f"predicted lap {predicted:.3f} s" if predicted else "predicted lap fails")
+        if self.stopping():
+            self._withdraw()
 
     def end_of_lap(self) -> None:
-        """The one command of this lap: a decided SET, a STORE, or GET."""
+        """The one command of this lap: a decided SET, a STORE, or GET; none once the run is stopping (what was
+        decided is withdrawn)."""
         if not self.live or self.version != 2:
             self.pending_command = None
+            return
+        if self.stopping():
+            self._withdraw()
             return
         cmd = self.pending_command or Command(self._next_seq(), "GET")
         self.pending_command = None
@@ -337,9 +350,67 @@ class Actor:
         if cmd.op == "SET" and c is not None and c.seq == cmd.seq:
             c.status, c.deadline = "sent", time.monotonic() + self.o.ack_timeout_s
             self._act("send", c, outcome=encode(cmd).strip())
+        if self.store is not None and cmd.op == "STORE" and cmd.seq == self.store.seq:
+            self._send_store()
+            return
         self._send(cmd)
 
+    def _withdraw(self) -> None:
+        """The run is stopping: what was decided and not sent stays unsent, and is journaled so."""
+        cmd, self.pending_command = self.pending_command, None
+        if cmd is None:
+            return
+        c = self.current()
+        if cmd.op == "SET" and c is not None and c.seq == cmd.seq and c.status == "decided":
+            c.status = "withdrawn"
+            self._act("withdraw", c, outcome=f"decided but not sent: the run stopped; the robot keeps its gains "
+                      f"#{c.previous_seq}")
+        elif cmd.op == "STORE" and self.store is not None and cmd.seq == self.store.seq:
+            self._store_settled(False, "the STORE was not sent: the run stopped")
+
+    def _send_store(self) -> None:
+        st = self.store
+        st.tries += 1
+        st.deadline = time.monotonic() + self.o.ack_timeout_s
+        self._send(Command(st.seq, "STORE"))
+
+    def _store_answer(self, r: Reply) -> None:
+        st = self.store
+        if r.kind == "ACK":
+            self._store_settled(True, f"the robot stored gains #{st.change.seq} in its EEPROM: it boots on them")
+        elif r.reason == "EEPROM" and st.tries < self.o.store_tries and self.live and not self.stopping():
+            self._act("store_retry", st.change, store_seq=st.seq, warn=True,
+                      outcome=f"STORE #{st.seq} failed (EEPROM): sent again ({st.tries + 1} of {self.o.store_tries})")
+            self._send_store()
+        else:
+            self._store_settled(False, f"STORE #{st.seq} refused ({r.reason})")
+
+    def _store_settled(self, stored: bool, why: str, st: Store | None = None) -> None:
+        """A STORE (default: the one on its way) has an outcome: the robot boots on the change's gains, or on what
+        it did before."""
+        st = st or self.store
+        if st is self.store:
+            self.store = None
+        self.given_up = None if stored else st
+        st.change.stored = "stored" if stored else "not_stored"
+        if stored:
+            self.stored_seq = st.change.seq
+            self._act("stored", st.change, store_seq=st.seq, outcome=why)
+            return
+        boots = "unknown gains" if self.stored_seq is None else f"gains #{self.stored_seq}"
+        self._act("not_stored", st.change, store_seq=st.seq, warn=True,
+                  outcome=f"{why}: the robot runs gains #{st.change.seq} but at its next power-up boots on {boots}")
+
+    def keep_alive(self) -> None:
+        """The twin is busy (re-tuning): tell a robot that waits that it is there (nothing once stopping)."""
+        if self.live and self.version == 2 and not self.stopping():
+            self.keep_alives += 1
+            self.send_line(encode(KeepAlive((self.keep_alives - 1) % SEQ_MAX + 1)), time.monotonic() + KEEPALIVE_S)
+
     def _send(self, cmd: Command) -> None:
+        if self.stopping():
+            log.info("act: %s #%d not sent: the run is stopping", cmd.op, cmd.seq)
+            return
         if self.live:
             line = encode(cmd)
             self.send_line(line, time.monotonic() + self.o.ack_timeout_s)
@@ -357,7 +428,8 @@ class Actor:
             action.update(seq=change.seq, change=change.kind, gains=change.gains, previous=change.previous,
                           previous_seq=change.previous_seq, reason=change.reason, status=change.status,
                           predicted_lap_time_s=change.predicted_lap_time_s, aligned=change.aligned,
-                          decided_lap=change.decided_lap)
+                          decided_lap=change.decided_lap, stored=change.stored)
+        action.update(running_seq=self.in_force_seq, stored_seq=self.stored_seq)
         action.update(fields)
         (log.warning if warn else log.info)("act: %s%s: %s", kind, f" #{change.seq}" if change else "",
                                             action.get("outcome", ""))
@@ -365,6 +437,12 @@ class Actor:
             self.on_action(action)
 
     def summary(self) -> list[dict]:
-        return [{"seq": c.seq, "kind": c.kind, "status": c.status, "gains": c.gains, "previous_seq": c.previous_seq,
-                 "reason": c.reason, "predicted_lap_time_s": c.predicted_lap_time_s, "decided_lap": c.decided_lap,
-                 "first_lap": c.first_lap, "after": [e["robot_lap_time_s"] for e in c.after]} for c in self.changes]
+        return [{"seq": c.seq, "kind": c.kind, "status": c.status, "stored": c.stored, "gains": c.gains,
+                 "previous_seq": c.previous_seq, "reason": c.reason, "predicted_lap_time_s": c.predicted_lap_time_s,
+                 "decided_lap": c.decided_lap, "first_lap": c.first_lap,
+                 "after": [e["robot_lap_time_s"] for e in c.after]} for c in self.changes]
+
+    def robot_state(self) -> dict:
+        """What the robot runs and what it boots on, as far as the twin knows (None: not known)."""
+        return {"running_seq": self.in_force_seq, "stored_seq": self.stored_seq,
+                "store_pending": self.store.seq if self.store is not None else None}

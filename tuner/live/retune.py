@@ -10,6 +10,10 @@ down (v_max scaled by :data:`SLOWER`, one batch) that finishes every lap, and fa
 small grid (:func:`tuner.search.start.rescue_start`). A lap slower than ``timeout_s`` (twice the robot's lap,
 say) counts as failed: it would be no answer, and a lap left to run to the twin's 60 s limit costs eight laps.
 
+A re-tune has a ``deadline`` (wall clock: the robot does not wait): the descent stops when what is left of it
+would not cover the last race, which is then run on the best point found so far; when even the first races
+overrun it (or ``stop()``: the run is ending), no gains are proposed, and the note says which (``in_time``).
+
 Everything is rounded to what the wire carries (:func:`twin.telemetry.wire.on_the_wire`) before it is raced: the
 twin predicts exactly the gains it will send.
 """
@@ -55,6 +59,8 @@ class Retune:
     laps: int
     wall_s: float
     note: str
+    in_time: bool = True  # False: the deadline (or a stop) cut it short: the best gains by then, or none (changed False)
+
 
     def summary(self) -> dict:
         return dataclasses.asdict(self)
@@ -87,34 +93,71 @@ def _slowed_start(objective: LapObjective, z0: np.ndarray) -> tuple[np.ndarray, 
     return rescue_start(objective, z0)
 
 
+class _OutOfTime(Exception):
+    """The descent must stop here to leave time for the last race (its best point so far goes with it)."""
+
+    def __init__(self, z: np.ndarray):
+        self.z = z
+
+
+class _Clock:
+    """The re-tune's time: what is left before ``deadline`` (``time.monotonic``), and what a lap costs (the
+    cheapest per lap of the batches so far: a larger batch shares its overhead among more laps, as the last race's
+    will)."""
+
+    def __init__(self, deadline: float | None, stop: Callable[[], bool]):
+        self.deadline, self.stop, self.t0 = deadline, stop, time.monotonic()
+        self.per_lap_s = 0.0
+        self.batch: tuple[float, int] = (self.t0, 0)
+
+    def start(self, laps_so_far: int) -> None:
+        """A batch (or a run of batches) begins, after ``laps_so_far`` laps."""
+        self.batch = (time.monotonic(), laps_so_far)
+
+    def ran(self, laps_so_far: int) -> None:
+        t, n = self.batch
+        if laps_so_far > n:
+            cost = (time.monotonic() - t) / (laps_so_far - n)
+            self.per_lap_s = cost if not self.per_lap_s else min(self.per_lap_s, cost)
+
+    def over(self, laps_ahead: int = 0) -> bool:
+        """The run stops, or ``laps_ahead`` more laps would end after the deadline."""
+        if self.stop():
+            return True
+        return self.deadline is not None and time.monotonic() + laps_ahead * self.per_lap_s > self.deadline
+
+
 def _values(low: float, high: float, n: int) -> list[float]:
     return sorted({float(v) for v in np.linspace(float(low), float(high), n)})
 
 
 def retune_gains(twin: DigitalTwin, address: str, low: float, high: float, seeds: tuple[int, ...], timeout_s: float = 60.0,
-           descent: DescentOptions = RETUNE_DESCENT, progress: Callable[[int, int], None] | None = None) -> Retune:
+           descent: DescentOptions = RETUNE_DESCENT, deadline: float | None = None,
+           stop: Callable[[], bool] = lambda: False, progress: Callable[[int, int], None] | None = None) -> Retune:
     """Gains for the twin (its current values are the gains in force and the aligned parameter) that finish
     every lap with ``address`` at ``low`` and ``high`` and each of ``seeds``; the gains in force when they
-    already do. ``progress(done, planned)``: steps of the re-tune (the race of the gains in force, each descent
-    iteration, the final race), ending with done = planned at its real end."""
+    already do. ``deadline`` (``time.monotonic``): the best found by then, or none; ``stop()``: none.
+    ``progress(done, planned)``: steps of the re-tune (the race of the gains in force, each descent iteration, the
+    final race), ending with done = planned at its real end."""
     planned, done = descent.max_iter + 2, 0
 
-    def step(_=None) -> None:
+    def step() -> None:
         nonlocal done
         done += 1
         if progress:
             progress(done, planned)
 
     try:
-        return _retune(twin, address, low, high, seeds, timeout_s, descent, step)
+        return _retune(twin, address, low, high, seeds, timeout_s, descent, deadline, stop, step)
     finally:
         if progress:
             progress(done, done)  # its real end: fewer steps when the gains in force were kept or descent converged
 
 
 def _retune(twin: DigitalTwin, address: str, low: float, high: float, seeds: tuple[int, ...], timeout_s: float,
-            descent: DescentOptions, step: Callable) -> Retune:
+            descent: DescentOptions, deadline: float | None, stop: Callable[[], bool], step: Callable[[], None]) -> Retune:
     t0 = time.perf_counter()
+    clock = _Clock(deadline, stop)
     bounds = bounds_for(twin)
     current = {a: twin.space.get(a) for a in GAIN_ADDRESSES}
     start = on_the_wire(clip_to_bounds(current, bounds))
@@ -124,25 +167,65 @@ def _retune(twin: DigitalTwin, address: str, low: float, high: float, seeds: tup
     limits = LapLimits(timeout_s=timeout_s)
     objective = LapObjective(base, space, limits=limits, envelope=envelope, risk=Risk.parse(ROBUST_RISK))
     z0 = space.to_unit(np.array([start[a] for a in GAIN_ADDRESSES]))
+    clock.start(0)
     objective(z0[None])
+    clock.ran(objective.laps)
     step()
     first = objective.at(z0)
     axes = {a: vs for a, vs in envelope.axes}
     final = Envelope.of({address: _values(low, high, FINAL_VALUES)},
                         range(seeds[0], seeds[0] + max(FINAL_SEEDS, len(seeds))))
     if all(r.completed for r in first.laps) and start == on_the_wire(current):
+        clock.start(0)
         kept = _race_all(twin, [start], final, limits)  # kept only if they finish on as many seeds as a change
+        clock.ran(len(kept))
         if all(r.completed for r in kept):
             return Retune(current, False, True, axes, max(r.lap_time_s for r in kept), objective.laps + len(kept),
                           time.perf_counter() - t0, "the gains in force finish every lap of the envelope")
+    last_race = (len(FINAL_SLOWER) + 2) * len(final.scenarios) * len(final.seeds)  # laps of _final at most
+
+    def none_in_time(why: str) -> Retune:
+        return Retune(current, False, False, axes, None, objective.laps, time.perf_counter() - t0,
+                      f"{why}: no gains proposed, the robot keeps its gains", in_time=False)
+
+    if clock.over(last_race):
+        return none_in_time(_late(clock, "before the descent"))
+    clock.start(objective.laps)
     z, rescue = (z0, None) if all(r.completed for r in first.laps) else _slowed_start(objective, z0)
-    result = descend(objective, z, descent, on_iteration=step)
-    gains, worst, raced = _final(twin, space, [result.z, z], final, limits)
+    clock.ran(objective.laps)
+    if clock.over(last_race):
+        return none_in_time(_late(clock, "before the descent"))
+    clock.start(objective.laps)
+
+    def in_time(it) -> None:
+        step()
+        clock.ran(objective.laps)
+        if clock.over(last_race):
+            raise _OutOfTime(it.z)
+
+    try:
+        result = descend(objective, z, descent, on_iteration=in_time)
+        best, iterations, cut = result.z, f"{len(result.iterations)} iterations", ""
+    except _OutOfTime as e:
+        best, iterations, cut = e.z, "descent stopped", f"; the best found by the deadline ({_allowed(clock)})"
+    if clock.stop():
+        return none_in_time("the run is stopping")
+    gains, worst, raced = _final(twin, space, [best, z], final, limits)
     step()
-    note = (f"{len(result.iterations)} iterations from the gains in force" + (f" ({rescue})" if rescue else "")
+    note = (f"{iterations} from the gains in force" + (f" ({rescue})" if rescue else "") + cut
             + ("" if worst is not None else "; no gains found that finish every lap of the envelope"))
     return Retune(gains, gains != on_the_wire(current), worst is not None, axes, worst, objective.laps + raced,
-                  time.perf_counter() - t0, note)
+                  time.perf_counter() - t0, note, in_time=not cut)
+
+
+def _allowed(clock: _Clock) -> str:
+    return f"{max(0.0, clock.deadline - clock.t0):.3g} s allowed"
+
+
+def _late(clock: _Clock, where: str) -> str:
+    if clock.stop():
+        return "the run is stopping"
+    return f"the deadline ({_allowed(clock)}) would pass {where}"
 
 
 def _final(twin: DigitalTwin, space: SearchSpace, points: list[np.ndarray], envelope: Envelope, limits: LapLimits):

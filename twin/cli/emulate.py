@@ -53,13 +53,15 @@ def add_parser(sub) -> None:
     p.add_argument("--eeprom", metavar="FILE", help="its EEPROM (stored gains), kept in FILE across runs (created at the first STORE; "
                    "a file that is not its image is refused)")
     p.add_argument("--commands", choices=COMMAND_MODES, default="answer",
-                   help="how it treats the twin's commands: answer them, refuse each SET and STORE (NAK,LOCKED), or "
-                        "ignore them (a receive line that is cut)")
+                   help="how it treats the twin's commands: answer them, refuse each SET and STORE (NAK,LOCKED), "
+                        "ignore them (a receive line that is cut), or answer all but STORE, which it neither writes nor "
+                        "answers (no-store: an EEPROM write that hangs)")
     p.add_argument("--lockstep", action="store_true",
                    help="after each lap wait for the twin's next command (live --act sends one every lap): runs at "
                         "--speed then see the twin's decisions on the lap they were taken")
     p.add_argument("--idle-timeout", type=o.number(0.1, 86400.0), default=60.0, metavar="WALL_S",
-                   help="stop when nobody has read the stream for this long (no TCP client, a pty nobody reads)")
+                   help="stop when nobody has read the stream for this long (no TCP client, a pty nobody reads); in "
+                        "--lockstep, when the twin has given no sign of life (a command or a keep-alive) for this long")
     o.add_json(p)
     o.add_verbose(p)
     p.set_defaults(run=run)

@@ -113,7 +113,8 @@ def _say(out: Output, e: dict) -> None:
     median = f", median lap {e['median_lap_time_s']:.3f} s" if e["median_lap_time_s"] else ""
     out.say(f"{e['kind']} {e['robot']}: {e['laps']} laps, {e['completed']} completed, {e['failed']} failed{median}")
     for ch in e["changes"]:
-        out.say(f"  gains #{ch['seq']} ({ch['kind']}, decided at lap {ch['decided_lap']}): {ch['status']}"
+        stored = f", {ch['stored'].replace('_', ' ')}" if ch.get("stored") else ""  # what it boots on, apart
+        out.say(f"  gains #{ch['seq']} ({ch['kind']}, decided at lap {ch['decided_lap']}): {ch['status']}{stored}"
                 + (f" — {ch['outcome']}" if ch["outcome"] else ""))
     for address, f in (e.get("forecasts") or {}).items():
         if f["rate"] is not None:

@@ -27,10 +27,11 @@ SENSITIVITY_MAX_SOBOL = 8  # tuner.sensitivity.laps.MAX_SOBOL
 ACT_EVERY_LAPS = 5  # tuner.live.ActOptions.every_laps
 ACT_CONFIRM_LAPS = 2  # tuner.live.ActOptions.confirm_laps
 ACT_ACK_TIMEOUT_S = 3.0  # tuner.live.ActOptions.ack_timeout_s
+ACT_STORE_TRIES = 3  # tuner.live.ActOptions.store_tries
 
 LINK_FSYNC_INTERVAL_S = 0.25  # twin.link.reader.FSYNC_INTERVAL_S
 LINK_RETRY_S = 30.0  # twin.link.reader.RETRY_S
-COMMAND_MODES = ("answer", "nak", "ignore")  # twin.link.robot_end.COMMAND_MODES
+COMMAND_MODES = ("answer", "nak", "ignore", "no-store")  # twin.link.robot_end.COMMAND_MODES
 
 FIRMWARE_BOARD = "pololu-3pi-atmega328p"  # twin.pil.firmware.BOARD
 TELEMETRY_EVERY = 2  # twin.pil.lap.TELEMETRY_EVERY

@@ -9,7 +9,7 @@ import contextlib
 import os
 import signal
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 from lf_common.files import input_file
 from twin.cli import library_values as lib
@@ -66,7 +66,12 @@ def add_parser(sub) -> None:
                    help="laps with new gains compared with the prediction before they are confirmed (or rolled back)")
     o.add_db(p, "the robot's life (robots, runs, laps, alignments, gain changes)")
     p.add_argument("--ack-timeout", type=o.number(0.01, 3600.0), default=lib.ACT_ACK_TIMEOUT_S, metavar="WALL_S",
-                   help="how long to wait for the robot's answer to a command")
+                   help="how long to wait for the robot's answer to a command (a STORE unanswered is sent again, "
+                        f"{lib.ACT_STORE_TRIES} times in all, then reported not stored)")
+    p.add_argument("--retune-deadline", type=o.number(0.1, 86400.0), metavar="WALL_S",
+                   help="the longest a re-tune may take: the best gains found by then, or none (default: 10 laps of "
+                        "the robot at its median lap time, as far ahead as the gains are raced; the robot does not "
+                        "wait)")
     o.add_json(p)
     o.add_recording(p, "the comparison, lap by lap")
     o.add_verbose(p, quiet=True)
@@ -174,7 +179,8 @@ def _actor(args, twin, options: LiveOptions, outbox: Outbox, journal: Journal, o
     past = [a for _, a in read_journal(journal.path)]
     known = {a["seq"]: a["gains"] for a in past if a.get("kind") == "decide" and a.get("gains")}
     sent = [a["seq"] for a in past if isinstance(a.get("seq"), int)]
-    act = ActOptions(every_laps=args.act_every, confirm_laps=args.confirm_laps, ack_timeout_s=args.ack_timeout)
+    act = ActOptions(every_laps=args.act_every, confirm_laps=args.confirm_laps, ack_timeout_s=args.ack_timeout,
+                     retune_deadline_s=args.retune_deadline)
     actor = Actor(twin, options.address, act, options.seed,
                   lambda line, deadline: outbox.put(line.encode("ascii"), deadline), on_action,
                   next_seq=max(sent, default=0) + 1, known=known)
@@ -256,14 +262,20 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
         index = journal.write(session)
         if db is not None:
             db.journal_record(session, index)
-        stop = _stopper(args, live, start_laps, signalled)
-        worker = Worker(live, stop) if actor is not None else None
+        received = _LapCounter()
+        stop, ended = _stopper(args, (lambda: len(live.laps) - start_laps) if actor is None else received.count,
+                               signalled)
+        worker = None
+        if actor is not None:  # the laps up to the last are still fed; nothing goes out once the reader stops
+            actor.stopping = stop
+            worker = Worker(live, ended)
 
         def on_line(raw: bytes) -> bool:
             if worker is None:
                 return feed_line(raw, live, stats)
             record, lap_event = decode_line(raw, stats)
             if record is not None:
+                received.see(record)
                 worker.put(record)
             return lap_event
 
@@ -291,6 +303,8 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     summary["log_error"] = str(log_error) if log_error else None
     summary["actions"] = actions
     summary["changes"] = actor.summary() if actor is not None else []
+    summary["robot_state"] = actor.robot_state() if actor is not None else None
+    summary["keep_alives"] = actor.keep_alives if actor is not None else 0
     summary["journal"] = os.path.abspath(journal.path) if os.path.exists(journal.path) else None
     summary["history"] = None if db is None else {"db": display(args.db), "written": db.written, "error": db.failed}
     if not os.path.exists(args.log):
@@ -313,16 +327,37 @@ def _remove(paths: list[str]) -> None:
             os.remove(f)
 
 
-def _stopper(args, live: LiveTwin, start_laps: int, signalled: list[int]):
-    """When to stop reading: a signal, --laps new laps, or --duration wall seconds from now."""
+def _stopper(args, laps: Callable[[], int], signalled: list[int]):
+    """(when to stop reading: a signal, ``laps()`` reaching --laps, or --duration wall seconds from now; when the
+    run has ended, laps aside: what is still queued is not fed)."""
     t0 = time.monotonic()
 
-    def stop() -> bool:
-        done_laps = args.laps is not None and len(live.laps) - start_laps >= args.laps
-        timed_out = args.duration is not None and time.monotonic() - t0 > args.duration
-        return bool(signalled) or done_laps or timed_out
+    def ended() -> bool:
+        return bool(signalled) or (args.duration is not None and time.monotonic() - t0 > args.duration)
 
-    return stop
+    def stop() -> bool:
+        return ended() or (args.laps is not None and laps() >= args.laps)
+
+    return stop, ended
+
+
+class _LapCounter:
+    """The laps received (a LAP or FAIL event after a START, as :class:`twin.telemetry.laps.LapAssembler` counts
+    them), before the twin has fed them: reading stops at the last lap --laps watches, however far behind the
+    twin's decisions are."""
+
+    def __init__(self):
+        self.laps, self.started = 0, False
+
+    def see(self, record) -> None:
+        event = getattr(record, "event", None)  # (only an Event has one)
+        if event == "START":
+            self.started = True
+        elif event in ("LAP", "FAIL") and self.started:
+            self.laps, self.started = self.laps + 1, False
+
+    def count(self) -> int:
+        return self.laps
 
 
 def _summary(args, live: LiveTwin, stats: LinkStats, start_laps: int, state: str, gave_up: str | None,

@@ -201,34 +201,39 @@ class CommandPort:
     Args:
       receive: waits at most ``timeout`` [s] for bytes from the twin; b"" if none came (or the link has no way back).
       robot: the robot's end of the command link.
-      lockstep: wait after each lap for a command (at most ``idle_timeout_s``; then :class:`NoReader`).
+      lockstep: wait after each lap for a command (at most ``idle_timeout_s`` from the twin's last sign of life: a
+        command or a keep-alive, which a twin busy re-tuning sends; then :class:`NoReader`).
     """
 
     def __init__(self, receive: Callable[[float], bytes], robot: RobotEnd, lockstep: bool = False,
                  idle_timeout_s: float = 60.0, laps: int | None = None):
         self.receive, self.robot, self.lockstep, self.idle_timeout_s = receive, robot, lockstep, idle_timeout_s
         self.laps, self.ended = laps, 0  # after its last lap the robot waits for nothing
+        self.heard = time.monotonic()  # the twin's last sign of life (bytes from it)
 
     def serve(self, timeout: float, send: Callable[[str], None]) -> None:
         """Answer what arrives within ``timeout`` [s] (0: only what is there now)."""
         end = time.monotonic() + timeout
         while True:
             data = self.receive(max(0.0, end - time.monotonic()))
+            if data:
+                self.heard = time.monotonic()
             for answer in self.robot.receive(data) if data else ():
                 send(answer)
             if time.monotonic() >= end:
                 return
 
     def await_command(self, send: Callable[[str], None]) -> None:
-        """Lockstep: after a lap (but its last), wait for the twin's next command (answered). A twin that closed
-        the link is gone (:class:`ConnectionResetError`: a TCP robot then waits for the next one)."""
+        """Lockstep: after a lap (but its last), wait for the twin's next command (answered); keep-alives are
+        answered and restart the idle time, but the robot waits on. A twin that closed the link is gone
+        (:class:`ConnectionResetError`: a TCP robot then waits for the next one)."""
         self.ended += 1
         if self.laps is not None and self.ended >= self.laps:
             return
-        seen, end = self.robot.received, time.monotonic() + self.idle_timeout_s
+        seen, self.heard = self.robot.received, time.monotonic()
         while self.robot.received == seen:
-            if time.monotonic() > end:
-                raise NoReader(f"lockstep: no command from the twin for {self.idle_timeout_s:g} s after a lap")
+            if time.monotonic() > self.heard + self.idle_timeout_s:
+                raise NoReader(f"lockstep: no sign of life from the twin for {self.idle_timeout_s:g} s after a lap")
             if getattr(self.receive, "closed", False):
                 raise ConnectionResetError("lockstep: the twin closed the link")
             self.serve(0.05, send)

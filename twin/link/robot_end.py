@@ -4,11 +4,14 @@ it, and the stored-gains slots of its EEPROM, which the twin's ATmega328P progra
 * **Commands.** SET is checked against the range the firmware accepts (the model space's range of each gain),
   answered at once, and applied only at the next lap start; GET answers the gains in force; STORE writes them to
   EEPROM, reads them back and answers. A command repeating the last sequence number gets the last answer again.
+  A keep-alive (``$LFK``) is echoed at once and is no command: it changes nothing and is not counted in
+  :attr:`RobotEnd.received` (a robot in lockstep goes on waiting for the lap's command).
 * **Stored gains.** Two slots of ``"LFG2" | gen | seq | five gains | CRC-16/XMODEM`` (:data:`SLOT`, 30 bytes
   each). STORE writes the slot that does not hold the newest good set; at power-up the newest slot whose CRC
   checks wins, and the robot says which it took and how many failed (the BOOT event).
 * **Faults a test asks for**: ``commands="nak"`` refuses every SET and STORE (NAK,LOCKED: its owner locked the
-  gains), ``commands="ignore"`` answers nothing and applies nothing (its receive line is cut).
+  gains), ``commands="ignore"`` answers nothing and applies nothing (its receive line is cut),
+  ``commands="no-store"`` answers SET and GET but neither writes nor answers a STORE (an EEPROM write that hangs).
 """
 
 from __future__ import annotations
@@ -22,8 +25,8 @@ from lf_common.crc import CRC_BYTES, crc_ok, with_crc
 from lf_common.errors import LineFollowerError
 from lf_common.files import atomic_file
 from twin.errors import TwinError
-from twin.telemetry.wire import (GAIN_ADDRESSES, Boot, Command, LineSplitter, Reply, UnknownCommand, WireError, decode,
-                                 encode, gains_from_wire, gains_to_wire)
+from twin.telemetry.wire import (GAIN_ADDRESSES, Boot, Command, KeepAlive, LineSplitter, Reply, UnknownCommand, WireError,
+                                 decode, encode, gains_from_wire, gains_to_wire)
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +35,7 @@ SLOT = struct.Struct("<4sHH5i")  # magic, generation, seq, gains in thousandths;
 SLOT_SIZE = SLOT.size + CRC_BYTES  # 30 bytes
 SLOTS = 2
 IMAGE_SIZE = SLOT_SIZE * SLOTS  # the C robot's EEPROM file: the two slots
-COMMAND_MODES = ("answer", "nak", "ignore")
+COMMAND_MODES = ("answer", "nak", "ignore", "no-store")
 
 
 def pack_slot(generation: int, seq: int, gains: tuple[int, ...]) -> bytes:
@@ -131,7 +134,7 @@ class RobotEnd:
       flashed: the gains it was flashed with (by address).
       limits: {address: (lo, hi)} the firmware accepts for each gain.
       eeprom: its EEPROM image file, or None for an EEPROM that starts erased and is not kept.
-      commands: ``answer`` (default), ``nak`` or ``ignore`` (see the module docstring).
+      commands: ``answer`` (default), ``nak``, ``ignore`` or ``no-store`` (see the module docstring).
     """
 
     def __init__(self, robot_id: str, flashed: Mapping[str, float], limits: Mapping[str, tuple[float, float]],
@@ -146,6 +149,7 @@ class RobotEnd:
         self.last: tuple[int, str] | None = None  # (seq, answer line) of the last command answered
         self.splitter = LineSplitter()
         self.received = 0  # commands decoded (answered or not)
+        self.keep_alives = 0  # keep-alives decoded (echoed unless commands are ignored)
 
     def boot(self, t: float = 0.0) -> str:
         """Power-up: load the newest good stored set; the BOOT line saying what it runs on."""
@@ -179,6 +183,11 @@ class RobotEnd:
                 cmd = Command(e.seq, "?")
             except WireError:
                 continue  # not a good line: the twin's wait for an answer will end
+            if isinstance(cmd, KeepAlive):
+                self.keep_alives += 1
+                if self.mode != "ignore":
+                    out.append(encode(cmd))
+                continue
             if not isinstance(cmd, Command):
                 continue
             self.received += 1
@@ -188,7 +197,7 @@ class RobotEnd:
         return out
 
     def _answer(self, cmd: Command) -> str | None:
-        if self.mode == "ignore":
+        if self.mode == "ignore" or (self.mode == "no-store" and cmd.op == "STORE"):
             return None
         if self.last is not None and self.last[0] == cmd.seq:
             return self.last[1]  # sent again: the same answer, nothing done twice

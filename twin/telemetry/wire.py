@@ -35,6 +35,12 @@ than ``MAX_LINE`` bytes.
 * ``$LFC,<seq>,STORE*CS``: keep the gains in force across power cycles: write them to EEPROM with their CRC,
   read them back, then ACK (NAK,EEPROM if they differ).
 
+* ``$LFK,<n>*CS``: keep-alive: the twin is there and working (it sends one every ``KEEPALIVE_S``, 1 s, while
+  it re-tunes, when no command goes out). ``n`` counts 1–65535 and wraps; it is not a command's sequence number:
+  the robot answers it at once with the same line (``$LFK,<n>*CS``: the robot is there too), acts on nothing,
+  keeps its last command's answer, and a robot waiting for the twin (an emulated robot in lockstep) goes on
+  waiting, counting its idle time from this sign of life. A robot that does not know it ignores the line.
+
 A robot answers every command it can decode once; a command repeating the last ``seq`` (the twin sent it again
 after losing the answer) gets the same answer again and is not acted on twice. A line that fails its checksum
 is not answered: the twin's wait for the answer ends, and it says so.
@@ -64,6 +70,7 @@ GAIN_ADDRESSES = ("control.v_max", "control.kb", "control.kp", "control.ki", "co
 GAIN_SCALE = 1000  # gains travel in thousandths of their unit
 GAIN_LIMIT = 10**7  # |gain| in thousandths a line may carry
 SEQ_MAX = 65535
+KEEPALIVE_S = 1.0  # [s] while the twin is busy (re-tuning), a keep-alive goes out this often
 BOOT_SOURCES = ("STORED", "BACKUP", "CONFIG")
 COMMANDS = ("SET", "GET", "STORE")
 NAK_REASONS = ("RANGE", "LOCKED", "EEPROM", "BADCMD")
@@ -130,6 +137,13 @@ class Command:
     seq: int
     op: str
     gains: tuple[int, ...] | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class KeepAlive:
+    """Twin → robot, and the robot's echo: the other end is there (``n`` counts 1–65535, wrapping)."""
+
+    n: int
 
 
 @dataclasses.dataclass(frozen=True)
@@ -224,6 +238,8 @@ def encode(record) -> str:
         extra = ([record.reason] if record.kind == "NAK" else
                  [record.in_force, *record.gains] if record.kind == "GAINS" else [])
         return frame(["LFR", record.seq, record.kind, *extra])
+    if isinstance(record, KeepAlive):
+        return frame(["LFK", record.n])
     if isinstance(record, Sample):
         return frame(["LFS", round(record.t * 1000), record.pos, record.seen, round(record.wl * 100), round(record.wr * 100)])
     if isinstance(record, Event):
@@ -247,8 +263,8 @@ def _gains(f: list[str], first: int, line: str) -> tuple[int, ...]:
 
 
 def decode(raw: bytes | str):
-    """One wire line → :class:`Header`, :class:`Sample`, :class:`Event`, :class:`Boot`, :class:`Command` or
-    :class:`Reply`; :class:`WireError` if corrupted."""
+    """One wire line → :class:`Header`, :class:`Sample`, :class:`Event`, :class:`Boot`, :class:`Command`,
+    :class:`Reply` or :class:`KeepAlive`; :class:`WireError` if corrupted."""
     if isinstance(raw, bytes):
         if len(raw) > MAX_LINE:
             raise WireError(f"line of {len(raw)} bytes is too long")
@@ -280,6 +296,8 @@ def decode(raw: bytes | str):
                           f[2], _int(f, 6, 0, SEQ_MAX, line))
         if version not in (1, 2):
             raise WireError(f"wire version {f[1]} is not supported (this reads 1 and {WIRE_VERSION})")
+    if kind == "LFK" and len(f) == 2:
+        return KeepAlive(_int(f, 1, 1, SEQ_MAX, line))
     if kind == "LFC" and len(f) >= 2:
         seq = _int(f, 1, 1, SEQ_MAX, line)
         if len(f) >= 3 and f[2] == "SET" and len(f) == 3 + len(GAIN_ADDRESSES):
