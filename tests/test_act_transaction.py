@@ -142,7 +142,7 @@ def test_the_stored_state_is_kept_apart_in_the_history_database(tmp_path, stand_
     time.sleep(0.06)
     robot.actor.idle(time.monotonic())
     history = History(f"sqlite:///{tmp_path / 'h.sqlite'}")
-    ingest = LogIngest(history, str(tmp_path / "live.log"))
+    ingest = LogIngest(history, str(tmp_path / "live.log"), "test-log")  # the log as the journal names it
     for i, a in enumerate(robot.actions):
         with history.begin() as c:
             ingest.journal_record(c, a, i)
