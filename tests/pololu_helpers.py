@@ -128,7 +128,7 @@ def motor_volts(speed: int) -> float:
     (datasheet 14.7.3), of the 3pi's regulated 9.25 V."""
     from twin.model.robots import THREE_PI
 
-    return speed / 256 * THREE_PI.values["motor.supply_voltage"]
+    return speed / 256 * THREE_PI.values["power.regulator_voltage"]
 
 
 def adc10(volts: float) -> float:

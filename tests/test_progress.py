@@ -109,3 +109,27 @@ def test_a_retune_reports_its_steps_and_ends_at_its_real_end():
     r = retune_gains(DigitalTwin(track="circle"), "motion.mu", 0.85, 0.95, (0, 1), progress=lambda d, p: calls.append((d, p)))
     assert not r.changed
     assert calls[0] == (1, RETUNE_DESCENT.max_iter + 2) and calls[-1] == (1, 1)
+
+
+def test_a_bar_started_in_a_worker_thread_does_not_touch_the_signal_handlers():
+    """live --act re-tunes in a worker thread and shows its progress there: only the main thread may set a signal's
+    handler (Python raises ValueError elsewhere), so loading the bar's library from a worker must not try."""
+    import argparse
+    import threading
+
+    from twin.cli import progress
+
+    errors = []
+
+    def work():
+        try:
+            phases = progress.Phases(argparse.Namespace(quiet=False, json=False), "re-tune", "step")
+            phases(1, 2)
+            phases(2, 2)
+        except Exception as e:  # noqa: BLE001 - the test reports whatever a worker raised
+            errors.append(e)
+
+    t = threading.Thread(target=work)
+    t.start()
+    t.join(30)
+    assert not errors, errors

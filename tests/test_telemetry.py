@@ -45,19 +45,35 @@ def test_telemetry_round_trip(recorded):
 
 
 def test_two_hidden_parameters_are_recovered_from_the_traces(oval, recorded):
+    """K is recovered within 5 % and identified; R_M is reported as sure as the run makes it: with the motors'
+    datasheet losses (issue 33) this run ties it to K (ρ ≈ −1: the closed loop hides the stall end of the torque
+    line), so the fit may call it not identifiable, but every set it reports holds the hidden value."""
     path, hidden, _ = recorded
     r = align_telemetry(oval, read_telemetry(path), ["motor.R_M", "motor.K"])
     for p in r.parameters:
-        assert p.value == pytest.approx(hidden[p.address], rel=0.05), p
-        assert p.identifiable
+        assert p.consistent[0] <= hidden[p.address] <= p.consistent[1], p
+        if p.identifiable and p.ci95 is not None:
+            assert p.ci95[0] <= hidden[p.address] <= p.ci95[1], p
+    k = r.parameters[1]
+    assert k.identifiable and k.value == pytest.approx(hidden["motor.K"], rel=0.05), k
     assert r.rms_wheel_radps < 1.0  # the noise of a different seed is ≈ 0.7 rad/s
     assert oval.space.get("motor.R_M") != 10.0  # the twin itself is left as it was
 
 
-def test_a_parameter_the_run_does_not_exercise_is_reported(oval, recorded):
-    """At v_max 1 m/s the tyres never reach their grip limit: μ cannot be seen in the traces."""
-    path, hidden, _ = recorded
-    r = align_telemetry(oval, read_telemetry(path), ["motion.mu", "motor.R_M"])
+@pytest.fixture(scope="module")
+def recorded_r_m(oval, tmp_path_factory):
+    """A 'robot' whose winding resistance alone differs, on its own noise seed."""
+    lap = run_laps(oval, [{"motor.R_M": 10.0}], seed=7)[0]
+    path = tmp_path_factory.mktemp("tel") / "lap.jsonl"
+    write_telemetry(str(path), lap_lines(lap, {"track": "oval", "sensors": 8, "dt_s": 0.005, "gains": GAINS}, 2))
+    return str(path)
+
+
+def test_a_parameter_the_run_does_not_exercise_is_reported(oval, recorded_r_m):
+    """At v_max 1 m/s the tyres never reach their grip limit: μ cannot be seen in the traces. (The fitted pair must
+    be able to explain the run: with the motors' datasheet losses (issue 33) R_M no longer stands in for a K the fit
+    holds fixed, and a misspecified fit leans on μ instead; so this run differs from the twin in R_M alone.)"""
+    r = align_telemetry(oval, read_telemetry(recorded_r_m), ["motion.mu", "motor.R_M"])
     mu, rm = r.parameters
     assert not mu.identifiable and "not identifiable" in mu.note
     assert rm.identifiable and rm.value == pytest.approx(10.0, rel=0.05)

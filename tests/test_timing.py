@@ -110,9 +110,11 @@ def test_the_c_loop_laps_as_the_firmware_on_the_mcu_for_tuned_gains(pil_ready, p
     assert all(lap.completed for lap in c_laps + mcu_laps)
     c, mcu = (np.array([lap.lap_time_s for lap in laps]) for laps in (c_laps, mcu_laps))
     # issue 33's bound on the bias (without the timing model the MCU's lap was 1.15 % slower); a single lap of gains
-    # this close to the edge of stability differs from the MCU's by no more than laps of other seeds differ
+    # this close to the edge of stability differs from the MCU's by no more than laps of other seeds differ, or the
+    # 0.4 % bench_timing.py measures for single laps (0.36 % before the datasheet motors, 0.35 % with them: seed 0 of
+    # three whose own laps spread 0.27 %; docs/models.md, "The robot's timing")
     assert abs(np.mean(mcu / c - 1)) <= 0.002
-    assert np.all(np.abs(mcu / c - 1) <= max(0.002, np.ptp(c) / c.min()))
+    assert np.all(np.abs(mcu / c - 1) <= max(0.004, np.ptp(c) / c.min()))
     # without the firmware's share (no compute time, any duty) the C loop is measurably further from the MCU
     instant = run_laps(twin, [{"timing.release": 0, "timing.compute": 0, "timing.pwm_counts": 0}] * 3, seed=seeds,
                        keep_traces=False)

@@ -11,6 +11,7 @@ import contextlib
 import os
 import signal
 import sys
+import threading
 
 
 def _leave(signum, frame) -> None:
@@ -28,11 +29,15 @@ def loading():
     with it (views are rerun's), and with it on, importing MuJoCo imports pyGLFW, which starts a Python child to
     probe the GLFW library's version; a Ctrl-C that ends us then leaves that child a broken pipe and a traceback."""
     os.environ.setdefault("MUJOCO_GL", "disable")
-    previous = signal.signal(signal.SIGINT, _leave)
+    # only the main thread may set a signal's handler; a worker (live --act's re-tune showing its progress) loads
+    # without the guard, the main thread's own Ctrl-C handling standing
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, _leave) if main else None
     try:
         yield
     except ImportError as e:  # a stale or missing build of the C core, or a missing dependency
         print(f"error: cannot start: {e}", file=sys.stderr)
         sys.exit(2)
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if main:
+            signal.signal(signal.SIGINT, previous)

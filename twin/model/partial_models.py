@@ -215,7 +215,6 @@ INFLUENCES = (
     ("motor", "motion", "rotor inertia and gearbox losses add to the wheels' inertia and damping"),
     ("cad", "sensor", "S and the sensor height place the rays; R and L set the firmware's wheel geometry"),
     ("motor", "control", "no-load speed at the supply voltage maps wheel speed to PWM duty"),
-    ("power", "motor", "the H-bridges' supply, sagging with the motors' current, or regulated"),
 )
 
 
