@@ -108,7 +108,7 @@ def under_load(twin: DigitalTwin, phases: list[np.ndarray]) -> list[np.ndarray]:
         applied = np.empty_like(u)
         for k, duty in enumerate(u / power.nominal_v):
             mujoco.mj_step1(model, data)  # the state's velocities: the back-EMF the step's control sees
-            emf = [-model.actuator_biasprm[a, 2] / model.actuator_gainprm[a, 0] * data.actuator_velocity[a] for a in act]
+            emf = [motor.K * data.actuator_velocity[a] for a in act]  # the actuator's velocity is the motor shaft's
             bus, _ = power.bus_voltage(duty, emf, (motor.R_M, motor.R_M))
             applied[k] = data.ctrl[act] = duty * bus
             mujoco.mj_step2(model, data)

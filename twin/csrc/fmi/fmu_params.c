@@ -45,6 +45,26 @@ static void write_motor(mjModel *m, int32_t a, const double *v) {
   m->dof_frictionloss[dof] = user[1] + v[5] * v[6] * v[7]; /* + G η τ0 */
 }
 
+/* motor.supply_voltage is the battery's open-circuit voltage (twin.model.power) */
+static void set_power(lf_power *p, int32_t what, double v) {
+  switch (what) {
+    case LF_P_MOTOR_SUPPLY_VOLTAGE: p->battery_v = v; break;
+    case LF_P_POWER_SOURCE_RESISTANCE: p->source_ohm = v; break;
+    case LF_P_POWER_REGULATOR_VOLTAGE: p->regulator_v = v; break;
+    case LF_P_POWER_REGULATOR_MIN_INPUT: p->regulator_min_input_v = v; break;
+    default: break;
+  }
+}
+
+static void set_timing(lf_timing *t, int32_t what, double v) {
+  switch (what) {
+    case LF_P_TIMING_RELEASE: t->release_us = v; break;
+    case LF_P_TIMING_COMPUTE: t->compute_us = v; break;
+    case LF_P_TIMING_PWM_COUNTS: t->pwm_counts = v; break;
+    default: break;
+  }
+}
+
 static void set_sensor(lf_sim *s, int32_t what, double v) {
   lf_sensor_model *r = &s->sensor;
   switch (what) {
@@ -91,22 +111,13 @@ int32_t lf_fmu_apply(lf_fmu *f, lf_sim *s) {
       s->timestep = v;
     } else if (what == LF_P_MOTION_IMPRATIO) {
       m->opt.impratio = v;
-    } else if (what == LF_P_MOTOR_SUPPLY_VOLTAGE) {
-      s->power.battery_v = v;
-    } else if (what == LF_P_POWER_SOURCE_RESISTANCE) {
-      s->power.source_ohm = v;
-    } else if (what == LF_P_POWER_REGULATOR_VOLTAGE) {
-      s->power.regulator_v = v;
-    } else if (what == LF_P_POWER_REGULATOR_MIN_INPUT) {
-      s->power.regulator_min_input_v = v;
+    } else if (what == LF_P_MOTOR_SUPPLY_VOLTAGE ||
+               (what >= LF_P_POWER_SOURCE_RESISTANCE && what <= LF_P_POWER_REGULATOR_MIN_INPUT)) {
+      set_power(&s->power, what, v);
     } else if (what >= LF_P_SENSOR_APERTURE && what <= LF_P_SENSOR_NOISE) {
       set_sensor(s, what, v);
-    } else if (what == LF_P_TIMING_RELEASE) {
-      s->timing.release_us = v;
-    } else if (what == LF_P_TIMING_COMPUTE) {
-      s->timing.compute_us = v;
-    } else if (what == LF_P_TIMING_PWM_COUNTS) {
-      s->timing.pwm_counts = v;
+    } else if (what >= LF_P_TIMING_RELEASE && what <= LF_P_TIMING_PWM_COUNTS) {
+      set_timing(&s->timing, what, v);
     } else if (what == LF_P_LAP_TIMEOUT) {
       f->limits.timeout_s = v;
     } else {

@@ -77,17 +77,21 @@ int32_t lf_check(const mjModel *m, const lf_sim *s) {
   return LF_OK;
 }
 
+/* A gearmotor's back-EMF K w_m [V] and winding resistance [ohm]: K = -biasprm[2] / gainprm[0], w_m the actuator's
+ * velocity (its gear is the gearbox's), R_M from actuator_user[0] (motors.actuator). */
+static double back_emf(const mjModel *m, const mjData *d, int32_t a, double *r_ohm) {
+  *r_ohm = m->actuator_user[a * m->nuser_actuator];
+  return -m->actuator_biasprm[a * mjNBIAS + 2] / m->actuator_gainprm[a * mjNGAIN + 0] * d->actuator_velocity[a];
+}
+
 /* Electrical power drawn by a gearmotor (motors.actuator), u i (the driver returns nothing to the battery): i = (v -
- * K w_m) / R_M with v the winding voltage (the lagged control with L_M > 0, else the clamped control), w_m the motor
- * shaft's speed (the actuator's velocity: its gear is the gearbox's), K = -biasprm[2] / gainprm[0] and R_M from
- * actuator_user[0]. */
+ * K w_m) / R_M with v the winding voltage (the lagged control with L_M > 0, else the clamped control). */
 double lf_motor_power(const mjModel *m, const mjData *d, int32_t a) {
-  double u = d->ctrl[a], v, k, current;
+  double u = d->ctrl[a], v, r, emf;
   if (m->actuator_ctrllimited[a]) u = fmin(fmax(u, m->actuator_ctrlrange[2 * a]), m->actuator_ctrlrange[2 * a + 1]);
   v = m->actuator_actnum[a] > 0 ? d->act[m->actuator_actadr[a]] : u;
-  k = -m->actuator_biasprm[a * mjNBIAS + 2] / m->actuator_gainprm[a * mjNGAIN + 0];
-  current = (v - k * d->actuator_velocity[a]) / m->actuator_user[a * m->nuser_actuator];
-  return fmax(0.0, u * current);
+  emf = back_emf(m, d, a, &r);
+  return fmax(0.0, u * ((v - emf) / r));
 }
 
 /* The texture as the sensors read it. */
@@ -319,12 +323,6 @@ void lf_decide(const mjData *d, lf_sim *s, double duty_left, double duty_right, 
   s->duty_next[1] = pwm_duty(&s->timing, duty_right);
   s->apply_time_s = d->time + (s->timing.release_us + read_us + s->timing.compute_us) * 1e-6;
   s->pending = 1;
-}
-
-/* A gearmotor's back-EMF K w_m [V] and winding resistance [ohm] (as lf_motor_power reads them). */
-static double back_emf(const mjModel *m, const mjData *d, int32_t a, double *r_ohm) {
-  *r_ohm = m->actuator_user[a * m->nuser_actuator];
-  return -m->actuator_biasprm[a * mjNBIAS + 2] / m->actuator_gainprm[a * mjNGAIN + 0] * d->actuator_velocity[a];
 }
 
 /* The H-bridges' supply over a step whose mean duties are duty[2] (lf_power; reference: twin.model.power). Each motor
