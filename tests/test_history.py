@@ -226,7 +226,8 @@ def test_the_forecast_filters_the_evidence_and_races_the_gains_on_the_twin():
     upper = f"{hi:.0f}" if hi is not None else "more than 1000"
     assert f.statement == (f"the gains in force stop finishing in about {f.laps_to_failure:.0f} laps (90 % between "
                            f"{lo:.0f} and {upper})")
-    assert f.evidence == {"alignments": 3, "laps": 26, "failed": 0}
+    # the laps carry no lap time here: the alignments are the evidence
+    assert f.evidence == {"alignments": 3, "laps": 26, "failed": 0, "timed_laps": 0, "observed_laps": 0, "features": []}
     assert any("replace the tyres" in a for a in f.advice)
     again = forecast_failure(twin, PLAIN, alignments[::-1], laps, "motion.mu", now_lap=25)
     assert again == f  # bit for bit, whatever the order the evidence comes in
@@ -283,7 +284,9 @@ def test_bad_history_input_is_one_line_and_no_number(tmp_path, capsys):
     assert main(["history", "--db", one, "--json"]) == 0
     robot = json.loads(capsys.readouterr().out)["robots"][0]
     f = robot["forecast"]
-    assert robot["causes_tracked"] == ["motion.mu"] and "cannot tell them apart" in robot["causes_note"]
+    # the aligned parameter and every part that wears; a few laps: no feature beside the lap time to tell them apart
+    assert robot["causes_tracked"] == ["motion.mu", "motor.supply_voltage"]
+    assert "cannot tell them apart" in robot["causes_note"]
     assert f["laps_to_failure"] is None and f["interval"] is None and f["quantiles"] is None and f["laps"] == 0
     assert f["statement"].startswith("too little evidence") and not any(ch.isdigit() for ch in f["statement"].split(":")[0])
 

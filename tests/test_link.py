@@ -347,3 +347,18 @@ def test_a_robot_in_lockstep_waits_on_while_the_twin_gives_signs_of_life():
     with pytest.raises(NoReader, match="no sign of life from the twin for 0.3 s"):
         port.await_command(answers.append)
     assert 0.5 + 0.3 <= time.monotonic() - t0 < 0.5 + 0.3 + 0.5
+
+
+@pytest.mark.quick
+def test_a_robot_too_flat_to_calibrate_sends_start_then_fail_and_the_next_lap():
+    """A battery so flat the calibration turn falls short ends its lap before the first control tick (no trace):
+    the emulated robot sends START and FAIL for it (it used to crash) and goes on to its next lap."""
+    from twin.link.emulator import Drift
+
+    twin = DigitalTwin(track="oval")
+    drift = Drift.parse("motor.supply_voltage=3.0:3.0@2", twin)
+    lines = [decode(line) for _, line in lap_records(twin, 3, 5, 2, drifts=[drift])]
+    events = [(r.event, r.reason) for r in lines if isinstance(r, Event)]
+    assert [k for k, _ in events] == ["START", "FAIL", "START", "FAIL"]
+    assert all(reason == "calibration" for _, reason in events[1::2]), events
+    assert not any(isinstance(r, Sample) for r in lines)

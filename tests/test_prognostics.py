@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from tuner.prognostics import (FailureModel, FilterSettings, Measurement, Outcome, estimate, life_sentence,
-                               measurement_sigma, remaining_life)
+from tuner.prognostics import (FailureModel, FilterSettings, LapObservation, Measurement, ObservationModel, Outcome,
+                               estimate, life_sentence, measurement_sigma, remaining_life)
 from tuner.prognostics.particle_filter import SCALE_PRIOR, DegradationState
 
 
@@ -51,23 +51,26 @@ def test_the_same_evidence_and_seed_give_the_same_particles_whatever_their_order
     c = estimate(ms, outs, 20, st, fm, seed=8)
     assert c.value.tobytes() != a.value.tobytes()  # the seed is the only source of chance
     # laps 17-20 failed at μ ≈ 0.83, above the twin's edge (0.8): this robot's edge lies higher than the twin's (the
-    # shift, 0 a priori, moves up), while the well measured value stays near the straight line's
+    # shift, 0 a priori, moves up), while the well measured value stays near the straight line's (within 0.02: the
+    # filter may bend the line a little, wear that speeds up, to meet the failures part of the way)
     assert np.median(a.shift) > 0.005 and np.median(c.shift) > 0.005
-    assert abs(np.median(a.value) - 0.82) < 0.01
+    assert abs(np.median(a.value) - 0.82) < 0.02
 
 
 def _synthetic_life(i: int, st: FilterSettings, horizon: int):
-    """A life drawn from the filter's own model: value, rate with its walk q, the alignments' noise scale; four
-    alignments in laps 0-30, then the truth continued to the horizon; the threshold 0.02-0.15 below lap 30's value."""
+    """A life drawn from the filter's own model: value, rate, acceleration and the rate's walk q, the alignments'
+    noise scale; four alignments in laps 0-30 (the first at lap 0, where the prior is), then the truth continued to the horizon; the threshold 0.02-0.15
+    below lap 30's value."""
     g = np.random.default_rng(1000 + i)
     scale = math.exp(g.uniform(*map(math.log, SCALE_PRIOR)))
     sigma = g.uniform(0.002, 0.01)
-    v, r = g.uniform(0.7, 1.0), g.standard_normal() * st.rate_prior * st.span
-    measured = {int(x) for x in g.choice(np.arange(31), 4, replace=False)}
+    v = g.uniform(*st.value_range)
+    r, a = g.standard_normal() * st.rate_prior * st.span, g.standard_normal() * st.accel_prior * st.span
+    measured = {0} | {int(x) for x in g.choice(np.arange(1, 31), 3, replace=False)}  # from lap 0: the prior's lap
     ms, path = [], []
     for lap in range(31 + horizon):
         if lap:
-            v, r = v + r, r + st.q * g.standard_normal()
+            v, r = v + r, r + a + st.q * g.standard_normal()
         path.append((v, r))
         if lap in measured:
             ms.append(Measurement(lap, lap, v + scale * sigma * g.standard_normal(), sigma))
@@ -79,7 +82,7 @@ def test_the_stated_intervals_cover_the_truth_at_their_stated_rate():
     85.5-94.5 % of them: 0.9 ± 3 binomial standard deviations (√(0.9·0.1/400) = 1.5 %), a false alarm about 0.3 %
     of the time for a calibrated filter. The remaining life's 90 % interval (whole laps, ends included, so it
     covers at least its rate) must cover the true first failed lap in 85.5-98 %."""
-    st, horizon, n = FilterSettings(span=1.0), 300, 400
+    st, horizon, n = FilterSettings(span=0.3, value_range=(0.7, 1.0), renewal=0.0, rate_prior=0.01), 300, 400
     rate_in = life_in = 0
     for i in range(n):
         ms, path, threshold = _synthetic_life(i, st, horizon)
@@ -91,3 +94,61 @@ def test_the_stated_intervals_cover_the_truth_at_their_stated_rate():
         life_in += life.quantile(0.05) <= truth <= life.quantile(0.95)
     assert 0.855 <= rate_in / n <= 0.945, rate_in / n
     assert 0.855 <= life_in / n <= 0.98, life_in / n
+
+
+def _worn_life(i: int, st: FilterSettings, model: ObservationModel, horizon: int):
+    """A one-way part's life from the filter's own model (half the lives straight, half speeding up), read lap by
+    lap through ``model``'s two correlated features with the robot's own noise scale; laps 0-30 seen."""
+    g = np.random.default_rng(5000 + i)
+    scale = math.exp(g.uniform(*map(math.log, SCALE_PRIOR)))
+    v = g.uniform(*st.value_range)
+    r = -abs(g.standard_normal()) * st.rate_prior * st.span
+    a = -abs(g.standard_normal()) * st.accel_prior * st.span if g.random() < 0.5 else 0.0
+    obs, path = [], []
+    for lap in range(31 + horizon):
+        if lap:
+            v, r = v + r, min(r + a + st.q * g.standard_normal(), 0.0)
+        path.append((v, r))
+        if lap <= 30:
+            y = model.mean(np.array([v]))[0] + scale * np.linalg.cholesky(model.covariances[0]) @ g.standard_normal(2)
+            obs.append(LapObservation(lap, tuple(float(x) for x in y)))
+    return obs, path, path[30][0] - g.uniform(0.02, 0.15)
+
+
+def test_lap_by_lap_features_give_intervals_that_cover_the_truth_at_their_stated_rate():
+    """200 synthetic worn lives read lap by lap through two correlated features (a lap time and a line offset
+    that rise as the value falls, correlation 0.9, as the twin's laps show): the remaining life's 90 % interval
+    must cover the true first failed lap in 0.9 ± 3 binomial standard deviations (√(0.9·0.1/200) = 2.1 %: 83.6-96.4
+    %), a false alarm about 0.3 % of the time for a calibrated filter."""
+    cov = np.array([[1e-4, 0.9 * 1e-2 * 5e-5], [0.9 * 1e-2 * 5e-5, 2.5e-9]])
+    values = np.linspace(0.5, 1.1, 7)
+    model = ObservationModel(("lap_time_s", "line_offset_m"), values,
+                             np.stack([7.0 + 2.0 * (1.1 - values) ** 2, 4e-3 + 3e-3 * (1.1 - values)], axis=1),
+                             np.repeat(cov[None], len(values), axis=0))
+    st = FilterSettings(span=0.3, value_range=(0.7, 1.0), renewal=0.0, rate_prior=0.02, one_way=-1.0, particles=2000)
+    horizon, n, life_in = 300, 200, 0
+    for i in range(n):
+        obs, path, threshold = _worn_life(i, st, model, horizon)
+        state = estimate((), (), 30, st, None, seed=i, observations=obs, model=model)
+        life = remaining_life(state, FailureModel(threshold, 1e-4, -1.0), st.q, seed=i, horizon=horizon)
+        truth = next((k for k in range(1, horizon + 1) if path[30 + k][0] < threshold), math.inf)
+        life_in += life.quantile(0.05) <= truth <= life.quantile(0.95)
+    assert 0.836 <= life_in / n <= 0.964, life_in / n
+
+
+@pytest.mark.quick
+def test_a_lap_the_twin_reads_weighs_the_values_by_its_features_and_a_second_cause_shows_as_a_misfit():
+    """The observation model against hand numbers: piecewise linear means, the covariance's Gaussian density, and
+    a lap whose features no value explains (slower, yet nearer the line) far off the curve."""
+    values = np.array([0.6, 0.8, 1.0])
+    means = np.array([[8.0, 6e-3], [7.4, 5e-3], [7.0, 4e-3]])
+    cov = np.array([[1e-4, 0.0], [0.0, 1e-8]])
+    model = ObservationModel(("lap_time_s", "line_offset_m"), values, means, np.repeat(cov[None], 3, axis=0))
+    assert model.mean(np.array([0.9, 1.1, 0.5])) == pytest.approx(np.array([[7.2, 4.5e-3], [6.8, 3.5e-3],
+                                                                           [8.3, 6.5e-3]]))
+    # at v = 0.9 the features (7.21, 4.5e-3) lie 1 σ off in lap time: log density −0.5 − ½ log det
+    ll = model.log_likelihood((7.21, 4.5e-3), np.array([0.9]), np.array([1.0]))
+    assert ll[0] == pytest.approx(-0.5 - 0.5 * math.log(1e-12))
+    assert model.misfit((7.2, 4.5e-3), (0.5, 1.1)) == pytest.approx(0.0, abs=1e-3)
+    assert model.misfit((7.6, 4.0e-3), (0.5, 1.1)) > 100  # slower than wear at 0.7 gives, the line as at 1.0
+    assert model.reads((7.0 * 1.2,)) and not model.reads((7.0 * 1.3,))

@@ -1,19 +1,27 @@
-"""When will the gains in force stop finishing laps? Prognostics as the field does it (:mod:`tuner.prognostics`):
+"""When will the gains in force stop finishing laps? Prognostics as the field does it (:mod:`tuner.prognostics`),
+for each part that wears (:data:`SERVICE`: grip, the battery) and each aligned parameter, one at a time:
 
-1. the degradation state of each aligned parameter (its value and rate) is estimated lap by lap by a particle filter
-   from the robot's alignments (each stamped with the laps it measured; estimates from failed laps are no evidence);
-2. the twin races the gains in force at a ladder of values of the parameter (each with a few noise seeds, one
-   batch) and fits how likely a lap is to fail at each value (:mod:`tuner.history.twin_edge`), and how far a lap
-   time pins the value (the lap time's slope and scatter over seeds): the failure model. Lap times say little about
-   this until the failures begin: a line follower keeps its lap time almost to its grip limit, then leaves the track;
-3. the filter runs again with every lap the robot ran on the gains in force, finished or failed, as evidence;
+1. the twin races the gains in force at a ladder of values of the parameter, from the least worn value known
+   towards the worn end (a few noise seeds each, common to every value), then finely where the laps still finish
+   and across the first failures (:mod:`tuner.history.twin_edge`): how likely a lap is to fail at each value (the
+   failure model), and what a finished lap shows at each value, its lap time and the line's mean offset from the
+   sensor array's centre, with their scatter lap to lap (the observation model);
+2. the degradation state (the value, its rate, whether the wear speeds up) is estimated lap by lap by a particle
+   filter from every finished lap on the gains in force, read through the observation model (the lap time and,
+   where the link carries the telemetry, the line offset: ``xte_mean_m`` in the history), every lap outcome,
+   finished or failed, and the alignments of laps before those (an alignment of laps the filter reads already is
+   the same evidence again, so it is not counted twice; estimates from failed laps are never evidence);
+3. before that, a check that wear of this parameter alone explains the last laps: with two features a lap lies on
+   the twin's curve or off it (:func:`one_cause_misfit`); off it, another cause is at work (or more than one), and
+   the forecast for this parameter says so and gives no number;
 4. a Monte Carlo carries each particle forward, lap by lap, racing each lap against the failure model: the
    distribution of the laps to the first failure (remaining useful life), its median and 90 % interval.
 
 Advice comes from the same distribution: re-tune now when one future in ten fails within ``RETUNE_WITHIN`` laps,
 and for a parameter with a service limit (:data:`SERVICE`: the ends of the robust envelope,
 :data:`tuner.search.envelope.ROBUST_AXES`) when the futures reach it: replace the tyres, charge the battery.
-With fewer than two alignments at different laps there is too little evidence: a sentence, no number.
+With fewer than ``MIN_TIMED_LAPS`` timed laps of a part that wears, and fewer than two alignments at different
+laps, there is too little evidence: a sentence, no number.
 """
 
 from __future__ import annotations
@@ -24,8 +32,8 @@ import math
 import numpy as np
 
 from tuner.history.trend import measured
-from tuner.prognostics import (FailureModel, FilterSettings, Measurement, Outcome, estimate, life_sentence,
-                               measurement_sigma, remaining_life, retune_advice, service_advice)
+from tuner.prognostics import (FilterSettings, LapObservation, Measurement, ObservationModel, Outcome, estimate,
+                               life_sentence, measurement_sigma, remaining_life, retune_advice, service_advice)
 from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
 from tuner.history.twin_edge import twin_edge
 from tuner.search.envelope import ROBUST_AXES
@@ -35,7 +43,13 @@ from twin.core.lap import LapLimits
 
 LADDER = 12  # values raced along the trend, one batch
 REFINE = 6  # then between the last that finished and the first that failed, one more batch
-MIN_MEASURED_LAPS = 2  # alignments at different laps, at least, for a forecast
+MIN_MEASURED_LAPS = 2  # alignments at different laps, at least, for a forecast …
+MIN_TIMED_LAPS = 8  # … or this many finished laps on the gains in force, read through the twin
+EDGE_PRIOR = 0.05  # the robot's failure edge lies within this share of the way to it of the twin's (one sd)
+MISFIT_WINDOW = 8  # the last laps whose features are checked against wear of one parameter alone …
+# … and the most their mean misfit may be: χ²(8)'s 99.9 % point per lap (3.27) for a robot scattering up to the
+# filter's largest noise scale (3×) more than the twin
+MISFIT_LIMIT = 3.0 ** 2 * 26.12 / 8
 # where a parameter needs service, and what to do: the worn end of the robust envelope
 SERVICE = {"motion.mu": (min(ROBUST_AXES["motion.mu"]), "replace the tyres"),
            "motor.supply_voltage": (min(ROBUST_AXES["motor.supply_voltage"]), "charge or replace the battery")}
@@ -60,6 +74,7 @@ class Forecast:
     band: tuple  # (lap, 5 %, median, 95 %) of the value, lap by lap
     advice: tuple[str, ...]
     note: str
+    misfit: float | None = None  # the last laps' mean distance from what wear of this parameter alone gives
 
     def summary(self) -> dict:
         return dataclasses.asdict(self)
@@ -131,48 +146,116 @@ def _no_number(address: str, now_lap: int, statement: str, evidence: dict, note:
                     tuple(band), (), note)
 
 
+def one_cause_misfit(model: ObservationModel, obs: list[LapObservation], span: tuple[float, float]) -> float | None:
+    """The mean over the last ``MISFIT_WINDOW`` observed laps of each one's misfit (its features' squared
+    Mahalanobis distance from the nearest the twin gives at any value: about χ²(d − 1) when the parameter alone
+    explains them); None with one feature (any value fits a lap time)."""
+    if len(model.names) < 2:
+        return None
+    wide = (span[0] - 0.5 * (span[1] - span[0]), span[1] + 0.5 * (span[1] - span[0]))
+    return float(np.mean([model.misfit(o.features, wide) for o in obs[-MISFIT_WINDOW:]]))
+
+
+def observations_of(laps: list[dict], gains: dict, now_lap: int, offset: bool) -> list[LapObservation]:
+    """What each finished, plausible lap on ``gains`` up to ``now_lap`` shows: its lap time and, with ``offset``,
+    the line's mean offset from the array's centre (the history's ``xte_mean_m``, from the robot's telemetry)."""
+    out = []
+    for r in laps:
+        if (r.get("completed") and r.get("lap_time_s") is not None and not r.get("implausible")
+                and int(r["n"]) <= now_lap and same_gains(r.get("gains"), gains)):
+            x = r.get("xte_mean_m")
+            if offset and x is None:
+                continue
+            out.append(LapObservation(int(r["n"]), (float(r["lap_time_s"]), float(x)) if offset else
+                                      (float(r["lap_time_s"]),)))
+    return sorted(out, key=lambda o: (o.lap, o.features))  # in lap order, whatever order the rows came in
+
+
 def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], address: str,
                      now_lap: int, seeds: int = EDGE_SEEDS, seed: int = 0, lap_timeout_s: float = 30.0,
                      settings: FilterSettings | None = None) -> Forecast:
-    """When the ``gains`` in force first fail, from the robot's ``alignments`` of ``address`` (in lap order, each
-    with ``first_lap``, ``lap``, ``value``, ``interval``) and its ``laps`` (``n``, ``completed``, ``gains``) up
-    to ``now_lap``. Deterministic in its inputs and ``seed``."""
+    """When the ``gains`` in force first fail, from the robot's ``alignments`` of ``address`` (each with
+    ``first_lap``, ``lap``, ``value``, ``interval``) and its ``laps`` (``n``, ``completed``, ``gains``,
+    ``lap_time_s``, ``xte_mean_m``) up to ``now_lap``. Deterministic in its inputs and ``seed``, whatever their
+    order."""
     p = twin.space.parameter(address)
     ms = [m for m in measurements_of(alignments, address) if m.lap <= now_lap]
     outs = [o for o in outcomes_of(laps, gains) if o.lap <= now_lap]
-    evidence = {"alignments": len(ms), "laps": len(outs), "failed": sum(o.failed for o in outs)}
-    if len({m.lap for m in ms}) < MIN_MEASURED_LAPS:
-        return _no_number(address, now_lap, f"too little evidence to forecast {address}: {len(ms)} alignment(s) of it "
-                          f"(at least {MIN_MEASURED_LAPS} at different laps are needed)", evidence, "too little evidence")
-    settings = settings or FilterSettings(span=float(p.upper - p.lower))
-    first = estimate(ms, (), now_lap, settings, None, seed)
-    now = first.quantiles((0.5,))[0]
+    with_offset = [r for r in laps if r.get("xte_mean_m") is not None]
+    timed = observations_of(laps, gains, now_lap, offset=False)
+    evidence = {"alignments": len(ms), "laps": len(outs), "failed": sum(o.failed for o in outs),
+                "timed_laps": len(timed)}
     service = SERVICE.get(address)
+    enough_laps = service is not None and len(timed) >= MIN_TIMED_LAPS
+    if len({m.lap for m in ms}) < MIN_MEASURED_LAPS and not enough_laps:
+        return _no_number(address, now_lap, f"too little evidence to forecast {address}: {len(ms)} alignment(s) of it "
+                          f"at different laps and {len(timed)} timed lap(s) on the gains in force (at least "
+                          f"{MIN_MEASURED_LAPS} alignments at different laps, or {MIN_TIMED_LAPS} timed laps of a part "
+                          f"that wears one way, are needed)", evidence, "too little evidence")
+    known = [m.value for m in ms] + [float(twin.space.get(address))]
     if service is not None:  # a part that wears one way only (grip, charge): towards its service limit
-        direction = -1.0 if service[0] < max(m.value for m in ms) else 1.0
-    else:  # else the way the evidence says it goes
+        direction = -1.0 if service[0] < max(known) else 1.0
+    else:  # else the way the alignments say it goes
+        first = estimate(ms, (), now_lap, settings or FilterSettings(span=float(p.upper - p.lower)), None, seed)
         direction = -1.0 if first.rate_quantiles((0.5,))[0] <= 0 else 1.0
-    worn = max(m.value for m in ms) if direction < 0 else min(m.value for m in ms)
-    start = float(np.clip(worn, p.lower, p.upper))  # the least worn value measured: the gains finished there
+    unworn = max(known) if direction < 0 else min(known)
     end = p.lower if direction < 0 else p.upper
-    if service is not None and (service[0] - now) * direction > 0:
-        end = now + 2 * (service[0] - now)  # twice as far as the service limit: far enough, and finely spaced
+    if service is not None and (service[0] - unworn) * direction > 0:
+        end = unworn + 2 * (service[0] - unworn)  # twice as far as the service limit: far enough, and finely spaced
     end = float(np.clip(end, p.lower, p.upper))
+    # the least worn value known, a tenth of the way further back: a robot a little better than any measured fits in
+    start = float(np.clip(unworn - 0.1 * (end - unworn), p.lower, p.upper))
     edge = twin_edge(twin, gains, address, start, end, direction, seed, LapLimits(timeout_s=lap_timeout_s),
                      seeds=seeds)
-    ms = [m for m in measurements_of(alignments, address, edge.value_sd_per_lap()) if m.lap <= now_lap]
-    failure, finished, failing, raced = edge.failure, edge.finished, edge.failing, edge.laps
+    failure, failing, raced = edge.failure, edge.failing, edge.laps
     if failure is None:
         return dataclasses.replace(
             _no_number(address, now_lap, f"the gains in force finish every lap the twin raced for {address} from "
                        f"{start:.4g} to {end:.4g}: no failure to forecast", evidence,
-                       "no failure within the range raced", first.band),
-            value_now=now, raced=(start, end), laps=raced)
-    state = estimate(ms, outs, now_lap, settings, failure, seed)
+                       "no failure within the range raced"),
+            raced=(start, end), laps=raced)
+    model = edge.observation
+    if model is not None:
+        offset = bool(with_offset) and all(r.get("xte_mean_m") is not None for r in laps if r.get("completed"))
+        obs = observations_of(laps, gains, now_lap, offset) if offset else timed
+        model = model if offset else model.lap_time_only()
+        obs = [o for o in obs if model.reads(o.features)]
+    else:
+        obs = []
+    if len(obs) < MIN_TIMED_LAPS:
+        obs = []
+    misfit = one_cause_misfit(model, obs, (min(start, end), max(start, end))) if obs else None
+    if misfit is not None and misfit > MISFIT_LIMIT:
+        return dataclasses.replace(
+            _no_number(address, now_lap, f"the robot's last {MISFIT_WINDOW} laps changed in a way wear of {address} "
+                       f"alone does not explain (their {' and '.join(model.names)} disagree: {misfit:.3g} against "
+                       f"at most {MISFIT_LIMIT:.3g}): another cause is at work, or more than one; no number for "
+                       f"{address}", evidence, "not explained by one cause"),
+            raced=(start, end), laps=raced, failing_value=failure.threshold, misfit=misfit)
+    # no lap counted twice: an alignment measured lap times the observations hold already, so only alignments of
+    # laps before the first observed lap are evidence beside them
+    first_seen = min((o.lap for o in obs), default=None)
+    kept = ms if first_seen is None else [m for m in ms if m.lap < first_seen]
+    if not kept and not obs:
+        return _no_number(address, now_lap, f"too little evidence to forecast {address}: no alignment and no lap "
+                          "the twin can read", evidence, "too little evidence")
+    span = max(abs(start - failure.threshold), 1e-3 * max(abs(start), 1.0))
+    lo_range = min(start, failure.threshold) - 0.5 * span
+    hi_range = max(start, failure.threshold) + 0.5 * span
+    settings = settings or FilterSettings(span=span, value_range=(lo_range, hi_range),
+                                          one_way=direction if service is not None else 0.0,
+                                          edge_prior=EDGE_PRIOR * span)
+    if kept:
+        kept = measurements_of([a for a in alignments if a.get("lap") is not None and int(a["lap"]) < (first_seen or
+                                math.inf)], address, edge.value_sd_per_lap())
+        kept = [m for m in kept if m.lap <= now_lap]
+    state = estimate(kept, outs, now_lap, settings, failure, seed, obs, model)
     life = remaining_life(state, failure, settings.q, seed + 1,
                           service_limit=service[0] if service is not None else None)
     already = bool(outs) and outs[-1].failed and outs[-1].lap == now_lap
     lo, med, hi = state.quantiles()
+    evidence["observed_laps"] = len(obs)
+    evidence["features"] = list(model.names) if obs else []
     advice: list[str] = []
     if already:
         statement = f"the gains in force already fail (the robot's last lap, {now_lap}, did)"
@@ -190,8 +273,10 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
         said = service_advice(life, service[1], address, service[0])
         if said:
             advice.append(said)
-    note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}), from {evidence['alignments']} alignments and "
-            f"{evidence['laps']} laps on these gains ({evidence['failed']} failed); on the twin half their laps fail "
-            f"at {failure.threshold:.4g} (the first failure raced at {failing:.4g})")
+    read = f"{len(obs)} laps read through the twin ({', '.join(model.names)})" if obs else "no lap read"
+    note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}), from {len(kept)} alignments, {read} and "
+            f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "
+            f"laps fail at {failure.threshold:.4g} (the first failure raced at {failing:.4g})")
     return Forecast(address, now_lap, statement, med, (lo, hi), state.rate_quantiles(), failure.threshold, laps_to,
-                    interval, life.quantiles(), (start, end), raced, evidence, tuple(state.band), tuple(advice), note)
+                    interval, life.quantiles(), (start, end), raced, evidence, tuple(state.band), tuple(advice), note,
+                    misfit)

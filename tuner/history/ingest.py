@@ -12,11 +12,9 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
-
 from tuner.history import schema as s
 from tuner.history.store import History
-from twin.telemetry.laps import RobotLap
+from twin.telemetry.laps import RobotLap, line_offsets_m
 
 DEFAULT_PITCH_M = 0.009525  # QTR-8's, when the journal does not say
 CHANGE_STATUS = {"send": "sent", "ack": "acked", "nak": "nak", "silent": "silent", "in_force": "in_force",
@@ -32,7 +30,7 @@ def cross_track(lap: RobotLap, pitch_m: float) -> tuple[float | None, float | No
     """(max, mean) |offset| of the line from the array's centre [m], from the lap's line positions."""
     if not len(lap.pos):
         return None, None
-    offset = np.abs(lap.pos - (lap.sensors - 1) * 500.0) / 1000.0 * pitch_m
+    offset = line_offsets_m(lap.pos, lap.sensors, pitch_m)
     return float(offset.max()), float(offset.mean())
 
 

@@ -14,7 +14,8 @@ import numpy as np
 import sqlalchemy as sa
 
 from tuner.history import schema as s
-from tuner.history.forecast import forecast_failure
+from tuner.history.forecast import MISFIT_LIMIT, SERVICE, forecast_failure
+from tuner.history.twin_edge import FEATURES
 from tuner.history.store import History
 from tuner.history.trend import trend_of
 from twin.core.digital_twin import DigitalTwin
@@ -107,23 +108,32 @@ def gains_in_force(laps: list[dict], changes: list[dict]) -> dict | None:
     return done[-1]["gains"] if done else None
 
 
-def causes_note(tracked: list[str], aligned: list[dict]) -> str:
-    """Which causes the forecast tracks, and what the evidence cannot tell apart."""
-    if not tracked:
-        return "no cause tracked: nothing was aligned"
+def causes_note(forecasts: dict, aligned: list[dict]) -> str:
+    """Which causes the forecast tracks, which of them alone explain the laps, and what the evidence cannot tell
+    apart."""
+    if not forecasts:
+        return "no cause tracked"
     unsure = sorted({a["address"] for a in aligned if a.get("identifiable") is False and not a.get("estimated")})
-    said = f"tracks {', '.join(tracked)}"
-    if len(tracked) == 1:
-        said += (f": a lap time is explained by one parameter, so another cause of slower laps (a tired battery, a "
-                 f"warm motor) is read as a change of {tracked[0]}: the evidence cannot tell them apart")
+    said = f"tracks {', '.join(forecasts)}, each on its own (the forecast is the soonest)"
+    checked = {a: f.misfit for a, f in forecasts.items() if f.misfit is not None}
+    if not checked:
+        said += ("; the laps carry one feature (the lap time), which any one cause explains: the evidence cannot "
+                 "tell them apart")
     else:
-        said += ": each on its own (the forecast is the soonest)"
+        fits = sorted(a for a, m in checked.items() if m <= MISFIT_LIMIT)
+        if not fits:
+            said += (f"; no one of them alone explains the last laps' {' and '.join(FEATURES)} together: more than "
+                     "one cause is at work (or another): no number")
+        elif len(fits) == 1:
+            said += f"; only {fits[0]} alone explains the last laps' {' and '.join(FEATURES)} together"
+        else:
+            said += f"; {', '.join(fits)} each explain the last laps alike: the evidence cannot tell them apart"
     if unsure:
         said += f"; some alignments of {', '.join(unsure)} say other values explain the laps as well"
     return said
 
 
-def _soonest(forecasts):
+def soonest(forecasts):
     """The forecast of the parameter that fails the gains first (by median; one with a number before one
     without)."""
     ranked = sorted(forecasts, key=lambda f: (f.laps_to_failure is None, f.laps_to_failure or 0.0, f.address))
@@ -157,11 +167,13 @@ def report(history: History, twin: DigitalTwin | None, name: str | None = None, 
         if twin is not None and gains and laps:
             if progress is not None:
                 progress(f"forecasting robot {robot['name']}: filtering its evidence, racing its gains on the twin")
+            # every aligned parameter, and every part that wears (read from the laps themselves)
+            causes = sorted(set(entry["trends"]) | set(SERVICE))
             entry["forecasts"] = {a: forecast_failure(twin, gains, aligned, laps, a, laps[-1]["n"], seed=seed)
-                                  for a in sorted(entry["trends"])}
-            f = _soonest(entry["forecasts"].values())
-            entry["causes_tracked"] = sorted(entry["forecasts"])
-            entry["causes_note"] = causes_note(entry["causes_tracked"], aligned)
+                                  for a in causes}
+            f = soonest(entry["forecasts"].values())
+            entry["causes_tracked"] = causes
+            entry["causes_note"] = causes_note(entry["forecasts"], aligned)
             entry["forecasts"] = {a: x.summary() for a, x in entry["forecasts"].items()}
             if f is not None:
                 entry["forecast"], entry["advice"] = f.summary(), list(f.advice)

@@ -7,7 +7,10 @@ laps:
   width: deterministic);
 * how well a lap time pins the parameter: the mean lap time's slope over the ladder's values before its first
   failure [s per unit], and the scatter of a lap time around it over noise seeds [s]; an alignment on n laps then knows
-  the parameter to about scatter/√n/|slope|, whatever its own consistent interval says.
+  the parameter to about scatter/√n/|slope|, whatever its own consistent interval says;
+* what a finished lap shows at each value (:class:`tuner.prognostics.ObservationModel`): the mean lap time and the
+  mean offset of the line from the sensor array's centre (what the robot's telemetry gives, read the same way:
+  :func:`line_offset_m`) over the values raced before the first failure, and their covariance over noise seeds.
 """
 
 from __future__ import annotations
@@ -18,14 +21,18 @@ import math
 import numpy as np
 from scipy.special import log_ndtr
 
-from tuner.prognostics import FailureModel
+from tuner.prognostics import FailureModel, ObservationModel
+from tuner.prognostics.evidence import SLOW
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
+from twin.telemetry.laps import line_offsets_m
 
 LADDER = 12  # values raced from the least worn measured value to the end of the range, one batch
-REFINE = 8  # then across the first failures, one more batch
-SEEDS = 4  # noise seeds per value
+REFINE = 8  # then across the first failures, and …
+DENSE = 3  # … this many times as finely as the ladder before them, one more batch
+SEEDS = 5  # noise seeds per value
+FEATURES = ("lap_time_s", "line_offset_m")  # what a finished lap shows, in the observation model's order
 EDGE_GRID, WIDTH_GRID = 241, 40  # the maximum-likelihood grid
 
 
@@ -38,6 +45,7 @@ class TwinEdge:
     lap_time_sd_s: float | None  # a lap time's scatter over noise seeds [s]
     raced: tuple[float, float]
     laps: int
+    observation: ObservationModel | None = None  # None: fewer than two values raced where every lap finished
 
     def value_sd_per_lap(self) -> float | None:
         """How far one lap time pins the parameter (its unit), or None if the laps cannot tell."""
@@ -46,11 +54,47 @@ class TwinEdge:
         return self.lap_time_sd_s / abs(self.seconds_per_unit)
 
 
+def line_offset_m(position: np.ndarray, sensors: int, pitch_m: float) -> float:
+    """The mean |offset| of the line from the sensor array's centre [m], from line positions (0 … (sensors − 1)·1000
+    across the array): the twin's trace and the robot's telemetry read the same way
+    (:func:`tuner.history.ingest.cross_track`)."""
+    return float(np.mean(line_offsets_m(position, sensors, pitch_m)))
+
+
 def _race(twin, gains, address, values, seeds, seed, limits):
+    """[(value, [(failed, lap time, line offset) per seed])]"""
     laps = run_laps(twin, [{**gains, address: float(v)} for v in values for _ in range(seeds)],
-                    seed=[seed + k for _ in values for k in range(seeds)], limits=limits, keep_traces=False)
-    return [(float(v), [(not r.completed, r.lap_time_s) for r in laps[i * seeds:(i + 1) * seeds]])
-            for i, v in enumerate(values)]
+                    seed=[seed + k for _ in values for k in range(seeds)], limits=limits, keep_traces=True)
+    pitch = float(twin.space.get("sensor.pitch"))
+    seen = [(not r.completed, r.lap_time_s,
+             line_offset_m(r.trace.column("position"), r.trace.count, pitch) if r.completed else None) for r in laps]
+    del laps  # the traces: only the offset is kept
+    return [(float(v), seen[i * seeds:(i + 1) * seeds]) for i, v in enumerate(values)]
+
+
+def observation_model(rows) -> ObservationModel | None:
+    """The features' means and covariance over noise seeds at each value raced before the first failure (``rows``
+    from the least worn) while its laps are regular (none ``SLOW`` times slower than the least worn's mean: past
+    there laps lose the line and find it again). Each value's covariance (few seeds) is shrunk halfway towards the
+    pooled one, and widened by the mean's own standard error."""
+    done = []
+    for v, laps in rows:
+        if any(f for f, _, _ in laps) or len(laps) < 2:
+            break
+        y = np.array([[t, x] for _, t, x in laps])
+        if done and y[:, 0].max() > SLOW * done[0][1][:, 0].mean():
+            break
+        done.append((v, y))
+    if len(done) < 2:
+        return None
+    done.sort(key=lambda d: d[0])
+    means = np.array([y.mean(axis=0) for _, y in done])
+    own = np.array([np.cov(y, rowvar=False) for _, y in done])
+    pooled = own.mean(axis=0)
+    # a lap's scatter, plus the twin's own mean's (a few seeds): a robot's lap is read against a mean known so well
+    covs = (0.5 * own + 0.5 * pooled) * (1 + 1 / min(len(y) for _, y in done))
+    covs += np.diag(np.maximum(np.diag(pooled), 1e-18) * 1e-6)[None]  # never singular
+    return ObservationModel(FEATURES, np.array([v for v, _ in done]), means, covs)
 
 
 def fit_failure(points: list[tuple[float, bool]], direction: float, span: float) -> FailureModel:
@@ -67,7 +111,7 @@ def fit_failure(points: list[tuple[float, bool]], direction: float, span: float)
 
 def _lap_times(rows) -> tuple[float | None, float | None]:
     """(slope [s per unit], scatter [s]) over the values where every lap finished."""
-    done = [(v, [t for _, t in laps]) for v, laps in rows if not any(f for f, _ in laps)]
+    done = [(v, [t for _, t, _ in laps]) for v, laps in rows if not any(f for f, _, _ in laps)]
     if len(done) < 2:
         return None, None
     x = np.array([v for v, ts in done for _ in ts])
@@ -77,26 +121,54 @@ def _lap_times(rows) -> tuple[float | None, float | None]:
     return slope, (math.sqrt(float(np.mean(within))) if within else None)
 
 
+_RECENT: dict = {}  # the last few races, by what decides them: a forecast lap after lap races the same ladder
+RECENT = 8
+
+
+def forget_races() -> None:
+    """Forget the races kept (the next forecast races the twin again, as a new process does)."""
+    _RECENT.clear()
+
+
 def twin_edge(twin: DigitalTwin, gains: dict, address: str, start: float, end: float, direction: float, seed: int,
               limits: LapLimits, seeds: int = SEEDS) -> TwinEdge:
-    """Race ``gains`` from ``address`` = ``start`` towards ``end`` (where the wear goes: ``direction``)."""
+    """Race ``gains`` from ``address`` = ``start`` towards ``end`` (where the wear goes: ``direction``). The same
+    race asked again (the same robot, values, track, gains and ladder) is answered from the last few: it is
+    deterministic."""
+    key = (twin.robot_urdf, twin.track_source, tuple(sorted(twin.space.values.items())), tuple(sorted(gains.items())),
+           address, start, end, direction, seed, limits, seeds)
+    if key not in _RECENT:
+        if len(_RECENT) >= RECENT:
+            del _RECENT[next(iter(_RECENT))]
+        _RECENT[key] = _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds)
+    return _RECENT[key]
+
+
+def _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds) -> TwinEdge:
     p = twin.space.parameter(address)
     rows = _race(twin, gains, address, np.linspace(start, end, LADDER), seeds, seed, limits)
-    any_fail = [any(f for f, _ in laps) for _, laps in rows]
+    any_fail = [any(f for f, _, _ in laps) for _, laps in rows]
     # the lap time's slope and scatter where the robot runs well: the ladder's values before its first failure
-    slope, sd = _lap_times(rows[:any_fail.index(True)] if any(any_fail) else rows)
+    before = rows[:any_fail.index(True)] if any(any_fail) else rows
+    slope, sd = _lap_times(before)
+    observation = observation_model(before)
     if any(any_fail) and not any_fail[0]:
         i = any_fail.index(True)
         hi = min(i + 1, len(rows) - 1)  # across the first failures and one step beyond
-        rows += _race(twin, gains, address, np.linspace(rows[i - 1][0], rows[hi][0], REFINE + 2)[1:-1], seeds, seed,
-                      limits)
+        fine = np.linspace(rows[i - 1][0], rows[hi][0], REFINE + 2)[1:-1]
+        # and finely where the robot runs well: the lap time bends there, and a robot's lap is read against it
+        dense = np.linspace(start, rows[i - 1][0], DENSE * (i - 1) + 1)
+        dense = dense[np.arange(len(dense)) % DENSE != 0]  # the ladder's own values raced already
+        rows += _race(twin, gains, address, np.concatenate([fine, dense]), seeds, seed, limits)
     rows.sort(key=lambda r: direction * r[0])  # from the least worn
     laps = sum(len(l) for _, l in rows)
-    fails = [any(f for f, _ in l) for _, l in rows]
+    fails = [any(f for f, _, _ in l) for _, l in rows]
     if not any(fails):
-        return TwinEdge(None, float(end), None, slope, sd, (start, end), laps)
+        return TwinEdge(None, float(end), None, slope, sd, (start, end), laps, observation)
     k = fails.index(True)
-    all_fail = [all(f for f, _ in l) for _, l in rows]
+    all_fail = [all(f for f, _, _ in l) for _, l in rows]
     upto = all_fail.index(True) + 1 if any(all_fail) else len(rows)  # beyond where every lap fails, nothing to learn
-    failure = fit_failure([(v, f) for v, l in rows[:upto] for f, _ in l], direction, float(p.upper - p.lower))
-    return TwinEdge(failure, rows[k - 1][0] if k else None, rows[k][0], slope, sd, (start, end), laps)
+    failure = fit_failure([(v, f) for v, l in rows[:upto] for f, _, _ in l], direction, float(p.upper - p.lower))
+    # the observation model also from the refined values before the first failure
+    observation = observation_model(rows) or observation
+    return TwinEdge(failure, rows[k - 1][0] if k else None, rows[k][0], slope, sd, (start, end), laps, observation)

@@ -3,11 +3,13 @@ estimated lap by lap from all the evidence, measurements and lap outcomes (:mod:
 particle filter that carries its uncertainty (:func:`estimate`); the remaining useful life of the gains in force by
 Monte Carlo, as a distribution of laps (:func:`remaining_life`); and what a person reads (:func:`life_sentence`)."""
 
-from tuner.prognostics.evidence import FailureModel, Measurement, Outcome, measurement_sigma
+from tuner.prognostics.evidence import (FailureModel, LapObservation, Measurement, ObservationModel, Outcome,
+                                        measurement_sigma)
 from tuner.prognostics.particle_filter import DegradationState, FilterSettings, estimate
 from tuner.prognostics.monte_carlo import HORIZON, RemainingLife, remaining_life
 from tuner.prognostics.statement import RETUNE_WITHIN, life_sentence, retune_advice, service_advice
 
-__all__ = ["DegradationState", "FailureModel", "FilterSettings", "HORIZON", "Measurement", "Outcome", "RETUNE_WITHIN",
+__all__ = ["DegradationState", "FailureModel", "FilterSettings", "HORIZON", "LapObservation", "Measurement",
+           "ObservationModel", "Outcome", "RETUNE_WITHIN",
            "RemainingLife", "estimate", "life_sentence", "measurement_sigma", "remaining_life", "retune_advice",
            "service_advice"]

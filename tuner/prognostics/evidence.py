@@ -70,3 +70,94 @@ def measurement_sigma(value: float, interval: tuple[float, float] | None, floor_
     particle)."""
     width = abs(interval[1] - interval[0]) if interval else 0.0
     return max(width / math.sqrt(12.0), floor_rel * abs(value), 1e-9)
+
+
+@dataclasses.dataclass(frozen=True)
+class LapObservation:
+    """What one finished lap of the robot, run with the gains in force, shows: its ``features`` (in the order of the
+    :class:`ObservationModel`'s ``names``: the lap time [s] and, where the link carries the telemetry, the mean
+    offset of the line from the sensor array's centre [m])."""
+    lap: int
+    features: tuple[float, ...]
+
+
+SLOW = 1.25  # a finished lap this much slower than the twin's fastest mean lost the line and found it again
+
+
+@dataclasses.dataclass(frozen=True)
+class ObservationModel:
+    """What the twin says a finished lap shows at a value of the parameter: the mean of each feature over noise
+    seeds at the raced ``values`` (ascending; piecewise linear between them, straight on beyond the ends), and the
+    features' covariance over noise seeds at each (interpolated the same way: the scatter grows towards the edge;
+    lap time and line offset move together, so one lap is not counted twice). Only regular laps: a lap ``SLOW``
+    times slower than the fastest mean lost the line and found it again, which the model does not describe
+    (:meth:`reads`)."""
+    names: tuple[str, ...]
+    values: np.ndarray  # (k,) ascending
+    means: np.ndarray  # (k, d)
+    covariances: np.ndarray  # (k, d, d)
+
+    def __post_init__(self):
+        k, d = len(self.values), len(self.names)
+        if k < 2 or self.means.shape != (k, d) or self.covariances.shape != (k, d, d):
+            raise ValueError("an observation model needs at least two raced values")
+
+    def _interp(self, v: np.ndarray, y: np.ndarray, extrapolate: bool) -> np.ndarray:
+        x = self.values
+        m = np.interp(v, x, y)
+        if extrapolate:
+            m = np.where(v < x[0], y[0] + (v - x[0]) * (y[1] - y[0]) / (x[1] - x[0]), m)
+            m = np.where(v > x[-1], y[-1] + (v - x[-1]) * (y[-1] - y[-2]) / (x[-1] - x[-2]), m)
+        return m
+
+    def mean(self, v: np.ndarray) -> np.ndarray:
+        """(n, d): the features the twin expects at the values ``v`` (n,)."""
+        v = np.asarray(v, float)
+        return np.stack([self._interp(v, self.means[:, j], True) for j in range(len(self.names))], axis=1)
+
+    def covariance(self, v: np.ndarray) -> np.ndarray:
+        """(n, d, d): one lap's scatter at the values ``v`` (held at the ends beyond them)."""
+        v = np.asarray(v, float)
+        d = len(self.names)
+        out = np.empty((len(v), d, d))
+        for i in range(d):
+            for j in range(d):
+                out[:, i, j] = self._interp(v, self.covariances[:, i, j], False)
+        return out
+
+    def reads(self, features: tuple[float, ...]) -> bool:
+        """Is this a lap the model describes (not one that lost the line and found it again)?"""
+        return features[0] <= SLOW * float(self.means[:, 0].min())
+
+    def log_likelihood(self, features: tuple[float, ...], v: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        """log N(features; mean(v), scale²·covariance(v)) per particle (constants dropped)."""
+        d = len(self.names)
+        r = np.asarray(features)[None, :] - self.mean(v)
+        cov = self.covariance(v)
+        q = np.einsum("ni,nij,nj->n", r, np.linalg.inv(cov), r)
+        return -0.5 * q / scale ** 2 - d * np.log(scale) - 0.5 * np.log(np.linalg.det(cov))
+
+    def pins(self, v: float) -> float:
+        """How far one lap pins the parameter near ``v`` (one standard error, the parameter's unit): from the
+        features' slopes there and their covariance (Fisher information)."""
+        dv = 1e-3 * max(abs(self.values[-1] - self.values[0]), 1e-9)
+        j = (self.mean(np.array([v + dv])) - self.mean(np.array([v - dv])))[0] / (2 * dv)
+        info = float(j @ np.linalg.inv(self.covariance(np.array([v]))[0]) @ j)
+        return math.inf if info <= 0 else 1.0 / math.sqrt(info)
+
+    def nearest(self, features: tuple[float, ...], span: tuple[float, float], points: int = 2001) -> tuple[float, float]:
+        """(the value in ``span`` whose features the twin gives nearest a lap's, the squared Mahalanobis distance
+        there): about χ² with d − 1 degrees of freedom when the parameter alone explains the lap (0 for one
+        feature, which some value always fits)."""
+        grid = np.linspace(span[0], span[1], points)
+        r = np.asarray(features)[None, :] - self.mean(grid)
+        d2 = np.einsum("ni,nij,nj->n", r, np.linalg.inv(self.covariance(grid)), r)
+        i = int(np.argmin(d2))
+        return float(grid[i]), float(d2[i])
+
+    def misfit(self, features: tuple[float, ...], span: tuple[float, float]) -> float:
+        """How far a lap's features lie from anything the parameter alone gives in ``span`` (:meth:`nearest`)."""
+        return self.nearest(features, span)[1]
+
+    def lap_time_only(self) -> "ObservationModel":
+        return ObservationModel(self.names[:1], self.values, self.means[:, :1], self.covariances[:, :1, :1])

@@ -1,5 +1,6 @@
 """Remaining useful life by Monte Carlo: each particle of the degradation state (:mod:`tuner.prognostics.
-particle_filter`) is carried forward lap by lap (v ← v + r, r ← r + N(0, q²), as the filter does) and each lap is
+particle_filter`) is carried forward lap by lap (v ← v + r, r ← r + a + N(0, q²), as the filter does; no renewal:
+the forecast is of the part as it is) and each lap is
 raced against the failure model: it fails with probability p_fail(v). The first lap that fails is that future's
 end of life; over all particles, the distribution of the number of laps, after the last lap seen, to the first
 failed lap of the gains in force. Futures that have not failed within ``horizon`` laps are censored (+∞): a
@@ -16,7 +17,7 @@ import math
 import numpy as np
 
 from tuner.prognostics.evidence import FailureModel
-from tuner.prognostics.particle_filter import DegradationState
+from tuner.prognostics.particle_filter import DegradationState, one_way
 
 HORIZON = 1000  # [laps]
 QUANTILES = (0.05, 0.10, 0.25, 0.50, 0.75, 0.90, 0.95)
@@ -57,7 +58,7 @@ def remaining_life(state: DegradationState, failure: FailureModel, q: float, see
     """The distribution of laps to the first failure from ``state`` (its last lap), rate walk ``q`` [unit per lap
     per lap]; with a ``service_limit`` (on the failing side) also when it is reached."""
     rng = np.random.default_rng(seed)
-    v, r = state.value.copy(), state.rate.copy()
+    v, r, a = state.value.copy(), state.rate.copy(), state.acceleration
     n = len(v)
     first = np.full(n, np.inf)
     service = None
@@ -66,7 +67,7 @@ def remaining_life(state: DegradationState, failure: FailureModel, q: float, see
     alive = np.ones(n, dtype=bool)
     for k in range(1, horizon + 1):
         v = v + r
-        r = r + q * rng.standard_normal(n)
+        r = one_way(r + a + q * rng.standard_normal(n), state.one_way)
         fails = alive & (rng.random(n) < failure.p_fail(v, state.shift))
         first[fails] = k
         alive &= ~fails

@@ -1,17 +1,29 @@
 """The degradation state of one parameter, estimated lap by lap by a particle filter (sequential importance
-resampling), from every measurement and every lap outcome (:mod:`tuner.prognostics.evidence`).
+resampling), from every measurement, every finished lap's features and every lap outcome
+(:mod:`tuner.prognostics.evidence`).
 
-A particle is (v, r, s, δ): the parameter's value at the current lap, its rate of change per lap, how far the
-alignments' stated standard errors are to be trusted (a scale on them, learnt from their scatter), and where this
-robot's failure edge lies against the twin's (δ ~ N(0, width²) a priori: the twin's edge is the prior, the robot's
-own finished and failed laps move it). From one lap to
-the next v ← v + r and r ← r + N(0, q²): wear at a rate that may itself change (accelerating, slowing), so the
-longer the forecast the wider it grows. A measurement of laps a..b weighs a particle by the normal density of the
-measured value around the particle's mean over those laps (v − r·(b − a)/2), with standard error s·σ; a lap
-outcome by the failure model's probability (with a small chance ``SURPRISE`` of a failure, or a finish, that the
-parameter does not explain, so that one odd lap cannot overrule everything else). When the effective number of
-particles falls below half, they are resampled (systematic), and the noise scale is jittered so it does not
-collapse to a single value.
+A particle is (v, r, a, s, δ): the parameter's value at the current lap, its rate of change per lap, the rate's own
+change per lap (wear that accelerates or slows: a straight line is a = 0; for a part that only wears, half the
+particles hold a = 0 and half wear ever faster, a ≥ 0 in the wear's direction, so the evidence weighs a straight line
+against a curve), how far the evidence's stated scatter is
+to be trusted (a scale on it, learnt from the evidence's own scatter), and where this robot's failure edge lies
+against the twin's (δ ~ N(0, width² + edge_prior²) a priori: the twin's edge is the prior, the robot's own
+finished and failed laps move it; each particle carries it as a distribution on a grid, updated by each lap
+outcome at the particle's value, so resampling for the value never makes it wander). From one lap to the next v ← v + r, r ← r + a + N(0, q²) (q small: what a quadratic does not
+describe; a part that only wears, grip or charge, never recovers: its rate keeps its sign), and with a small
+probability per lap (``RENEWAL``) the part is renewed: v is drawn again from the prior range, its rate kept (a tyre
+swapped, a battery charged: it wears on as before; renewals are proposed more often, near the value the lap's own
+evidence gives, and weighed back to that probability, so a renewal is followed by many particles, not a lucky
+few). A measurement of laps a..b weighs a
+particle by the normal density of the measured value around the particle's mean over those laps
+(v − r·(b − a)/2), with standard error s·σ; a finished lap's features by the observation model's density at v,
+covariance s²·Σ; a lap outcome by the failure model's probability (with a small chance ``SURPRISE`` of a failure,
+or a finish, that the parameter does not explain, so that one odd lap cannot overrule everything else). When the
+effective number of particles falls below half, they are resampled (systematic) and moved by a multivariate
+Liu-West kernel (v, r, a, log s, δ shrunk towards their mean and jittered with their own covariance, so their spread and
+how they move together are kept), so they do not collapse to a few values.
+
+The priors scale with ``span``: the distance the forecast cares about (from the value now to where the gains fail).
 
 Everything random comes from one ``numpy.random.Generator`` seeded by the caller: the same evidence and seed give
 bit-identical particles.
@@ -25,24 +37,36 @@ from typing import Sequence
 
 import numpy as np
 
-from tuner.prognostics.evidence import FailureModel, Measurement, Outcome
+from tuner.prognostics.evidence import FailureModel, LapObservation, Measurement, ObservationModel, Outcome
 
 PARTICLES = 4000
 SURPRISE = 0.02  # chance of a lap outcome the parameter does not explain
-RATE_PRIOR = 0.01  # the prior rate's standard deviation, per lap, as a fraction of the parameter's range
-RATE_WALK = 5e-4  # q: the rate's change per lap (standard deviation), as a fraction of the parameter's range
-SCALE_PRIOR = (0.5, 4.0)  # the noise scale s, log-uniform between these
-SCALE_JITTER = 0.05  # log s jitter at a resampling
+RATE_PRIOR = 0.05  # the prior rate's standard deviation, per lap, as a fraction of the span
+ACCEL_PRIOR = 2e-3  # the prior acceleration's standard deviation, per lap², as a fraction of the span
+RATE_WALK = 1e-4  # q: the rate's random change per lap (standard deviation), as a fraction of the span
+RENEWAL = 2e-3  # chance per lap that the part is renewed (its value drawn again from the prior range) …
+RENEWAL_PROPOSED = 0.03  # … proposed this often, near where the lap's evidence puts it, and weighed back
+SCALE_PRIOR = (1.0, 3.0)  # the noise scale s, log-uniform between these: a robot scatters no less than the twin
+SHIFT_GRID = 33  # the robot's edge against the twin's: ± 4 prior sd in this many steps
+LIU_WEST = 0.98  # the kernel's shrinkage towards the mean at a resampling (√(1 − 0.98²) ≈ 0.2 of the spread)
 
 
 @dataclasses.dataclass(frozen=True)
 class FilterSettings:
-    """span: the parameter's plausible range (upper − lower) in its unit, which scales the priors."""
+    """span: the distance that matters in the parameter's unit (from its value to where the gains fail), which
+    scales the priors; value_range: where the value may lie a priori (and where a renewed part starts), None: the
+    first measurement ± 3 of its errors."""
     span: float
     particles: int = PARTICLES
     rate_prior: float = RATE_PRIOR
+    accel_prior: float = ACCEL_PRIOR
     rate_walk: float = RATE_WALK
+    renewal: float = RENEWAL
     surprise: float = SURPRISE
+    value_range: tuple[float, float] | None = None
+    one_way: float = 0.0  # a part that only wears (grip, charge): the sign its rate keeps (−1, +1); 0: either way
+    edge_prior: float = 0.0  # how far the robot's failure edge may lie from the twin's a priori (sd, the unit),
+    # beside the twin's own edge width: what the twin does not model (another cause wearing too) moves it
 
     @property
     def q(self) -> float:
@@ -59,12 +83,18 @@ class DegradationState:
     scale: np.ndarray  # (particles,)
     shift: np.ndarray  # (particles,) the robot's failure edge against the twin's [parameter unit]
     band: list[tuple[int, float, float, float]]  # (lap, q05, median, q95)
+    accel: np.ndarray | None = None  # (particles,) per lap²; None: 0
+    one_way: float = 0.0  # the sign the rate keeps (FilterSettings.one_way)
 
     def quantiles(self, q=(0.05, 0.5, 0.95)) -> tuple[float, ...]:
         return tuple(float(x) for x in np.quantile(self.value, q))
 
     def rate_quantiles(self, q=(0.05, 0.5, 0.95)) -> tuple[float, ...]:
         return tuple(float(x) for x in np.quantile(self.rate, q))
+
+    @property
+    def acceleration(self) -> np.ndarray:
+        return np.zeros_like(self.rate) if self.accel is None else self.accel
 
 
 def weighted_quantiles(x: np.ndarray, w: np.ndarray, q: Sequence[float]) -> list[float]:
@@ -82,52 +112,156 @@ def systematic_resample(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.searchsorted(cw, positions)
 
 
+def one_way(r: np.ndarray, sign: float) -> np.ndarray:
+    """The rate of a part that only wears: never against its ``sign`` (0: either way); its wear may stop."""
+    return r if not sign else np.where(sign * r < 0, 0.0, r)
+
+
+def _liu_west(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Shrink the particles ``x`` (n, k) towards their mean and jitter them with their own covariance, keeping the
+    mean, the spread and how the columns move together (Liu and West 2001, multivariate)."""
+    if len(x) < 2:
+        return x
+    m = x.mean(axis=0)
+    cov = np.atleast_2d(np.cov(x, rowvar=False))
+    cov += np.eye(len(m)) * (1e-12 + 1e-9 * float(np.trace(cov)))
+    jitter = rng.standard_normal(x.shape) @ np.linalg.cholesky(cov).T
+    return LIU_WEST * x + (1 - LIU_WEST) * m + math.sqrt(1 - LIU_WEST ** 2) * jitter
+
+
+def _near(ms, obs, lap: int, model: ObservationModel | None, prior: tuple[float, float]) -> tuple[float, float] | None:
+    """Where lap ``lap``'s own evidence puts the value, and how widely to look around it: the value that best
+    explains its features (or its measurement), ± 4 of its errors at the largest noise scale; None if it has none
+    (or says too little to narrow the prior)."""
+    lo, hi = prior
+    here = [o for o in obs if o.lap == lap]
+    centre = sd = None
+    if here and model is not None:
+        centre = model.nearest(here[0].features, (lo, hi))[0]
+        sd = 4 * SCALE_PRIOR[1] * model.pins(centre)
+    else:
+        firsts = [m for m in ms if m.lap == lap]
+        if firsts:
+            centre, sd = firsts[0].value, 4 * SCALE_PRIOR[1] * firsts[0].sigma
+    if centre is None or not math.isfinite(sd) or sd <= 0 or sd > (hi - lo) / 4:
+        return None
+    return centre, sd
+
+
+def _draw(n: int, prior: tuple[float, float], near: tuple[float, float] | None,
+          rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` values from the uniform ``prior``, drawn ``near`` what a lap's evidence says when it says something,
+    with their log weights prior/proposal (0 when drawn from the prior itself): the evidence, far sharper than
+    the prior, then does not leave a handful of particles to carry the rest."""
+    lo, hi = prior
+    if near is None:
+        return rng.uniform(lo, hi, n), np.zeros(n)
+    centre, sd = near
+    v = centre + sd * rng.standard_normal(n)
+    inside = (v >= lo) & (v <= hi)
+    if not inside.any():
+        return rng.uniform(lo, hi, n), np.zeros(n)
+    # prior/proposal: 1/(hi − lo) over sd·√(2π)·exp(−z²/2), so the same scale whichever way a particle was drawn
+    logw = np.where(inside, 0.5 * ((v - centre) / sd) ** 2 + math.log(sd * math.sqrt(2 * math.pi) / (hi - lo)),
+                    -np.inf)
+    return v, logw
+
+
 def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], until_lap: int,
-             settings: FilterSettings, failure: FailureModel | None = None, seed: int = 0) -> DegradationState:
-    """Filter from the first measured lap to ``until_lap``; ``outcomes`` count only with a ``failure`` model (laps
-    before the first measurement are not used). Needs at least one measurement."""
-    if not measurements:
-        raise ValueError("no measurement to start from")
+             settings: FilterSettings, failure: FailureModel | None = None, seed: int = 0,
+             observations: Sequence[LapObservation] = (), model: ObservationModel | None = None) -> DegradationState:
+    """Filter from the first lap with evidence to ``until_lap``; ``outcomes`` count only with a ``failure`` model
+    and ``observations`` only with their ``model`` (laps before the first measurement or observation are not
+    used). Needs a measurement or an observation."""
+    obs = sorted(observations, key=lambda o: (o.lap, o.features)) if model is not None else []
+    if not measurements and not obs:
+        raise ValueError("no measurement or lap observation to start from")
     rng = np.random.default_rng(seed)
-    n, q = settings.particles, settings.q
+    n, q, span = settings.particles, settings.q, settings.span
     ms = sorted(measurements, key=lambda m: (m.lap, m.first_lap, m.value, m.sigma))
-    start = min(m.first_lap for m in ms)
-    first = ms[0]
-    # prior at the first lap measured: around the first measurement, wide enough for any scale of its error
-    v = first.value + rng.standard_normal(n) * max(3 * SCALE_PRIOR[1] * first.sigma, 0.02 * settings.span)
-    r = rng.standard_normal(n) * settings.rate_prior * settings.span
+    start = min([m.first_lap for m in ms] + [o.lap for o in obs])
+    if settings.value_range is not None:
+        lo, hi = settings.value_range
+    else:
+        first = ms[0]
+        wide = max(3 * SCALE_PRIOR[1] * first.sigma, 0.1 * span)
+        lo, hi = first.value - wide, first.value + wide
+    v, logw = _draw(n, (lo, hi), _near(ms, obs, start, model, (lo, hi)), rng)
+    logw = logw - logw[np.isfinite(logw)].max()
+    r = rng.standard_normal(n) * settings.rate_prior * span
+    if settings.one_way:
+        r = settings.one_way * np.abs(r)
+    a = rng.standard_normal(n) * settings.accel_prior * span
+    curved = np.ones(n, dtype=bool)
+    if settings.one_way:  # half the particles wear in a straight line, half speed up (a worn part wears faster)
+        curved = rng.random(n) < 0.5
+        a = np.where(curved, settings.one_way * np.abs(a), 0.0)
     log_s = rng.uniform(math.log(SCALE_PRIOR[0]), math.log(SCALE_PRIOR[1]), n)
-    shift = rng.standard_normal(n) * (failure.width if failure is not None else 0.0)
-    logw = np.zeros(n)
+    shift_sd = math.hypot(failure.width, settings.edge_prior) if failure is not None else 0.0
+    # the robot's edge against the twin's, per particle as a distribution on a grid (Rao-Blackwellised): only lap
+    # outcomes inform it, and drawn once per particle it would wander with every resampling meant for the value
+    edges = shift_sd * np.linspace(-4.0, 4.0, SHIFT_GRID)
+    log_q = np.tile(-0.5 * np.linspace(-4.0, 4.0, SHIFT_GRID) ** 2, (n, 1))
     by_lap: dict[int, list] = {}
     for m in ms:
         by_lap.setdefault(m.lap, []).append(m)
+    seen: dict[int, list[LapObservation]] = {}
+    for o in obs:
+        if start <= o.lap <= until_lap:
+            seen.setdefault(o.lap, []).append(o)
     outs: dict[int, list[Outcome]] = {}
     if failure is not None:
         for o in sorted(outcomes, key=lambda o: (o.lap, o.failed)):
             if start <= o.lap <= until_lap:
                 outs.setdefault(o.lap, []).append(o)
     band = []
-    for lap in range(start, max(until_lap, ms[-1].lap) + 1):
+    last = max([until_lap] + [m.lap for m in ms])
+    for lap in range(start, last + 1):
         if lap > start:
             v = v + r
-            r = r + q * rng.standard_normal(n)
+            r = one_way(r + a + q * rng.standard_normal(n), settings.one_way)
+            if settings.renewal > 0:  # renewals proposed RENEWAL_PROPOSED of the time, weighed back to the model's
+                renewed = rng.random(n) < RENEWAL_PROPOSED
+                fresh, fresh_logw = _draw(n, (lo, hi), _near(ms, obs, lap, model, (lo, hi)), rng)
+                v = np.where(renewed, fresh, v)
+                logw = logw + np.where(renewed, fresh_logw + math.log(settings.renewal / RENEWAL_PROPOSED),
+                                       math.log((1 - settings.renewal) / (1 - RENEWAL_PROPOSED)))
+        s = np.exp(log_s)
         for m in by_lap.get(lap, ()):
-            sd = np.exp(log_s) * m.sigma
+            sd = s * m.sigma
             mean = v - r * (m.lap - m.first_lap) / 2
             logw += -0.5 * ((m.value - mean) / sd) ** 2 - np.log(sd)
+        for o in seen.get(lap, ()):
+            logw += model.log_likelihood(o.features, v, s)
         for o in outs.get(lap, ()):
-            p = settings.surprise + (1 - 2 * settings.surprise) * failure.p_fail(v, shift)
-            logw += np.log(p if o.failed else 1 - p)
+            p = settings.surprise + (1 - 2 * settings.surprise) * failure.p_fail(v[:, None], edges[None, :])
+            lik = p if o.failed else 1 - p
+            belief = np.exp(log_q - log_q.max(axis=1, keepdims=True))
+            logw += np.log((belief * lik).sum(axis=1) / belief.sum(axis=1))
+            log_q += np.log(lik)
         w = np.exp(logw - logw.max())
         w /= w.sum()
         band.append((lap, *weighted_quantiles(v, w, (0.05, 0.5, 0.95))))
         if 1.0 / np.sum(w ** 2) < n / 2:
             idx = systematic_resample(w, rng)
-            v, r, shift = v[idx], r[idx], shift[idx]
-            log_s = log_s[idx] + SCALE_JITTER * rng.standard_normal(n)
+            v, r, a, log_s, curved, log_q = v[idx], r[idx], a[idx], log_s[idx], curved[idx], log_q[idx]
+            for group, cols in ((curved, (v, r, a, log_s)), (~curved, (v, r, log_s))):
+                if group.sum() > len(cols):
+                    moved = _liu_west(np.stack([c[group] for c in cols], axis=1), rng)
+                    for j, c in enumerate(cols):
+                        c[group] = moved[:, j]
+            r = one_way(r, settings.one_way)
+            log_s = np.clip(log_s, math.log(SCALE_PRIOR[0]), math.log(SCALE_PRIOR[1]))  # the kernel keeps to the prior
+            if settings.one_way:
+                a = settings.one_way * np.abs(a)
             logw = np.zeros(n)
     w = np.exp(logw - logw.max())
     w /= w.sum()
     idx = systematic_resample(w, rng)  # equally weighted particles for the prediction
-    return DegradationState(band[-1][0], v[idx], r[idx], np.exp(log_s[idx]), shift[idx], band)
+    v, r, a, log_s, log_q = v[idx], r[idx], a[idx], log_s[idx], log_q[idx]
+    # each particle's edge drawn from its own distribution (within a grid step)
+    cq = np.cumsum(np.exp(log_q - log_q.max(axis=1, keepdims=True)), axis=1)
+    pick = np.minimum((cq < rng.random(n)[:, None] * cq[:, -1:]).sum(axis=1), SHIFT_GRID - 1)
+    step = edges[1] - edges[0] if SHIFT_GRID > 1 else 0.0
+    shift = edges[pick] + step * (rng.random(n) - 0.5)
+    return DegradationState(band[-1][0], v, r, np.exp(log_s), shift, band, a, settings.one_way)

@@ -130,7 +130,8 @@ def lap_records(twin: DigitalTwin, seed: int, every: int, laps: int | None, robo
         lap = run_laps(twin, [values], seed=seed + k)[0]
         yield offset, _header(twin, every, robot, gains_seq)
         yield offset, encode(Event(offset, "START"))
-        for r in lap.trace.records[::every]:
+        # a lap that ended before its first control tick (no power to start on) has no samples: START, then FAIL
+        for r in (lap.trace.records[::every] if lap.trace is not None else ()):
             t = offset + float(r[COL["time_s"]])
             yield t, encode(Sample(t, int(r[COL["position"]]), int(r[COL["line_seen"]]),
                                    float(r[COL["wheel_left_radps"]]), float(r[COL["wheel_right_radps"]])))

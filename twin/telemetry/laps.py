@@ -18,6 +18,12 @@ import numpy as np
 from twin.telemetry.wire import Event, Header, Sample
 
 
+def line_offsets_m(position: np.ndarray, sensors: int, pitch_m: float) -> np.ndarray:
+    """|offset| of the line from the sensor array's centre [m] at each line position (0 … (sensors − 1)·1000
+    across the array): what a robot's telemetry and the twin's trace say alike."""
+    return np.abs(np.asarray(position, float) - (sensors - 1) * 500.0) / 1000.0 * pitch_m
+
+
 @dataclasses.dataclass
 class RobotLap:
     index: int
