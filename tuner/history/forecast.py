@@ -255,6 +255,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     already = bool(outs) and outs[-1].failed and outs[-1].lap == now_lap
     lo, med, hi = state.quantiles()
     evidence["observed_laps"] = len(obs)
+    evidence["alignments_used"] = len(kept)  # those of laps before the first lap read
     evidence["features"] = list(model.names) if obs else []
     advice: list[str] = []
     if already:

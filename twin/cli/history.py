@@ -120,7 +120,11 @@ def _say(out: Output, e: dict) -> None:
         if f["rate"] is not None:
             lo, mid, hi = f["rate"]
             out.say(f"  {address}: {f['value_now']:.4g} at lap {f['now_lap']}, {mid:+.3g} per lap (90 %: {lo:+.3g} to "
-                    f"{hi:+.3g}), from {f['evidence']['alignments']} alignments and {f['evidence']['laps']} laps")
+                    f"{hi:+.3g}), from {f['evidence'].get('alignments_used', f['evidence']['alignments'])} alignments, "
+                    f"{f['evidence'].get('observed_laps', 0)} "
+                    f"laps read through the twin and {f['evidence']['laps']} lap outcomes")
+        elif f.get("misfit") is not None:
+            out.say(f"  {address}: {f['statement']}")
     if e.get("causes_note"):
         out.say(f"  causes: {e['causes_note']}")
     f = e["forecast"]
