@@ -231,24 +231,29 @@ def _late(clock: _Clock, where: str) -> str:
 def _final(twin: DigitalTwin, space: SearchSpace, points: list[np.ndarray], envelope: Envelope, limits: LapLimits):
     """The gains to send: descent's best point as the wire will carry it, or (when rounding, or a seed the search
     did not race, tips a lap that ran at the very edge into failing) that point a little slower, or the start; the
-    fastest of them that finishes every lap (one batch, more seeds than the search). (gains, their worst lap or
-    None if none finishes everywhere, laps run)."""
+    fastest of them that finishes every lap (more seeds than the search: the best point alone first, then the rest
+    in one batch if it fails). (gains, their worst lap or None if none finishes everywhere, laps run)."""
     i = space.addresses.index("control.v_max")
     candidates = []
     for z in (points[0], *[_slower(space, points[0], i, f) for f in FINAL_SLOWER], points[1]):
         gains = on_the_wire(space.assignments(space.from_unit(z)))
         if gains not in candidates:
             candidates.append(gains)
-    laps = _race_all(twin, candidates, envelope, limits)
-    k = len(laps) // len(candidates)
+    # descent's best first (it is the fastest, and usually finishes: one small batch), the rest only if it fails
+    first = _race_all(twin, candidates[:1], envelope, limits)
+    if all(r.completed for r in first):
+        return candidates[0], max(r.lap_time_s for r in first), len(first)
+    rest = candidates[1:]
+    laps = _race_all(twin, rest, envelope, limits) if rest else []
+    k = len(laps) // len(rest) if rest else 0
     best, worst = candidates[0], None
-    for j, gains in enumerate(candidates):
+    for j, gains in enumerate(rest):
         mine = laps[j * k:(j + 1) * k]
         if all(r.completed for r in mine):
             w = max(r.lap_time_s for r in mine)
             if worst is None or w < worst:
                 best, worst = gains, w
-    return best, worst, len(laps)
+    return best, worst, len(first) + len(laps)
 
 
 def _slower(space: SearchSpace, z: np.ndarray, i: int, factor: float) -> np.ndarray:
