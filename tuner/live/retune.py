@@ -11,7 +11,8 @@ small grid (:func:`tuner.search.start.rescue_start`). A lap slower than ``timeou
 say) counts as failed: it would be no answer, and a lap left to run to the twin's 60 s limit costs eight laps.
 
 A re-tune has a ``deadline`` (wall clock: the robot does not wait): the descent stops when what is left of it
-would not cover the last race, which is then run on the best point found so far; when even the first races
+would not cover the last race (descent's best point alone, on more seeds; its slower variants only when it fails
+there and time is left), which is then run on the best point found so far; when even the first races
 overrun it (or ``stop()``: the run is ending), no gains are proposed, and the note says which (``in_time``).
 
 Everything is rounded to what the wire carries (:func:`twin.telemetry.wire.on_the_wire`) before it is raced: the
@@ -182,7 +183,7 @@ def _retune(twin: DigitalTwin, address: str, low: float, high: float, seeds: tup
         if all(r.completed for r in kept):
             return Retune(current, False, True, axes, max(r.lap_time_s for r in kept), objective.laps + len(kept),
                           time.perf_counter() - t0, "the gains in force finish every lap of the envelope")
-    last_race = (len(FINAL_SLOWER) + 2) * len(final.scenarios) * len(final.seeds)  # laps of _final at most
+    last_race = len(final.scenarios) * len(final.seeds)  # the final race of descent's best point (the rest if it fails)
 
     def none_in_time(why: str) -> Retune:
         return Retune(current, False, False, axes, None, objective.laps, time.perf_counter() - t0,
@@ -210,8 +211,11 @@ def _retune(twin: DigitalTwin, address: str, low: float, high: float, seeds: tup
         best, iterations, cut = e.z, "descent stopped", f"; the best found by the deadline ({_allowed(clock)})"
     if clock.stop():
         return none_in_time("the run is stopping")
-    gains, worst, raced = _final(twin, space, [best, z], final, limits)
+    clock.start(0)  # the final race's laps count from here
+    gains, worst, raced, late = _final(twin, space, [best, z], final, limits, clock)
     step()
+    if late:
+        cut = cut or f"; descent's best failed the final race, and the slower candidates would pass the deadline ({_allowed(clock)})"
     note = (f"{iterations} from the gains in force" + (f" ({rescue})" if rescue else "") + cut
             + ("" if worst is not None else "; no gains found that finish every lap of the envelope"))
     return Retune(gains, gains != on_the_wire(current), worst is not None, axes, worst, objective.laps + raced,
@@ -228,11 +232,13 @@ def _late(clock: _Clock, where: str) -> str:
     return f"the deadline ({_allowed(clock)}) would pass {where}"
 
 
-def _final(twin: DigitalTwin, space: SearchSpace, points: list[np.ndarray], envelope: Envelope, limits: LapLimits):
+def _final(twin: DigitalTwin, space: SearchSpace, points: list[np.ndarray], envelope: Envelope, limits: LapLimits,
+           clock: _Clock | None = None):
     """The gains to send: descent's best point as the wire will carry it, or (when rounding, or a seed the search
     did not race, tips a lap that ran at the very edge into failing) that point a little slower, or the start; the
     fastest of them that finishes every lap (more seeds than the search: the best point alone first, then the rest
-    in one batch if it fails). (gains, their worst lap or None if none finishes everywhere, laps run)."""
+    in one batch if it fails, and if the ``clock`` leaves time for them). (gains, their worst lap or None if none
+    finishes everywhere, laps run, whether the deadline left the slower ones unraced)."""
     i = space.addresses.index("control.v_max")
     candidates = []
     for z in (points[0], *[_slower(space, points[0], i, f) for f in FINAL_SLOWER], points[1]):
@@ -241,9 +247,13 @@ def _final(twin: DigitalTwin, space: SearchSpace, points: list[np.ndarray], enve
             candidates.append(gains)
     # descent's best first (it is the fastest, and usually finishes: one small batch), the rest only if it fails
     first = _race_all(twin, candidates[:1], envelope, limits)
+    if clock is not None:
+        clock.ran(len(first))
     if all(r.completed for r in first):
-        return candidates[0], max(r.lap_time_s for r in first), len(first)
+        return candidates[0], max(r.lap_time_s for r in first), len(first), False
     rest = candidates[1:]
+    if clock is not None and clock.over(len(rest) * len(first)):
+        return candidates[0], None, len(first), True
     laps = _race_all(twin, rest, envelope, limits) if rest else []
     k = len(laps) // len(rest) if rest else 0
     best, worst = candidates[0], None
@@ -253,7 +263,7 @@ def _final(twin: DigitalTwin, space: SearchSpace, points: list[np.ndarray], enve
             w = max(r.lap_time_s for r in mine)
             if worst is None or w < worst:
                 best, worst = gains, w
-    return best, worst, len(first) + len(laps)
+    return best, worst, len(first) + len(laps), False
 
 
 def _slower(space: SearchSpace, z: np.ndarray, i: int, factor: float) -> np.ndarray:
