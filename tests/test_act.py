@@ -292,3 +292,30 @@ def test_a_store_the_robot_never_answers_is_reported_not_stored_everywhere(tmp_p
     engine.dispose()
     assert tuple(row) == ("confirmed", "not_stored")
     assert not (tmp_path / "eeprom.bin").exists()  # nothing was ever stored (the image is made at the first write)
+
+
+def test_live_act_in_lockstep_keeps_its_robot_on_a_machine_busy_on_every_core(tmp_path):
+    """The documented pairing, `emulate --lockstep` with `live --act --act-every 3` at their default timeouts, while
+    a CPU-bound process runs on each of the machine's cores (started here): no dropped link, no robot timeout,
+    every lap sent and read, and the re-tunes within their deadline (issue 37's target)."""
+    import subprocess
+    import sys
+
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
+    try:
+        emu = robot(tmp_path, "--laps", 16, "--drift", DRIFT, "--lockstep", "--echo", "echo.txt")
+        live = Pumped([*RUN, "live", "--port", link(emu), *GAINS, "--laps", "16", "--json", "--act", "--act-every",
+                       "3"], cwd=tmp_path)
+        code, out, err = live.wait(timeout=600)
+        _, emu_out, emu_err = emu.wait(timeout=120)
+    finally:
+        for b in burners:
+            b.kill()
+            b.wait()
+    assert code == 0, err[-3000:]
+    doc = json.loads(out)
+    assert doc["reconnects"] == 0 and doc["laps"] == 16, err[-3000:]
+    assert "stops" not in emu_out + emu_err and "no command" not in emu_out + emu_err
+    assert len(echoed_laps(tmp_path / "echo.txt")) == 16
+    retunes = [a for a in doc["actions"] if a["kind"] == "retune"]
+    assert retunes and all(a["in_time"] for a in retunes), retunes

@@ -37,7 +37,7 @@ FIGURES = {
     "bench_learn.py": ["analysis:"],
     "bench_motors.py": ["pololu-mp-6v-30", "pololu-3pi-30", "largest error [%]"],
     "bench_pil.py": ["PIL lap", "C lap", "MCU only", "3pi program on the board"],
-    "bench_startup.py": ["python -c pass:", "worst:"],
+    "bench_startup.py": ["python -c pass:", "worst:", "re-tune (live --act"],
     "bench_step.py": ["serial Python loop", "batch, 1 thread", "batch, all cores", "laps batched"],
     "bench_timestep.py": ["largest step keeping fidelity", "CPU per lap"],
     "bench_timing.py": ["default  default", "default  plain", "worst |mean difference|"],

@@ -59,8 +59,8 @@ def test_the_same_evidence_and_seed_give_the_same_particles_whatever_their_order
 
 def _synthetic_life(i: int, st: FilterSettings, horizon: int):
     """A life drawn from the filter's own model: value, rate, acceleration and the rate's walk q, the alignments'
-    noise scale; four alignments in laps 0-30 (the first at lap 0, where the prior is), then the truth continued to the horizon; the threshold 0.02-0.15
-    below lap 30's value."""
+    noise scale; four alignments in laps 0-30 (the first at lap 0, where the prior is), then the truth continued to
+    the horizon; the threshold 0.02-0.15 below lap 30's value."""
     g = np.random.default_rng(1000 + i)
     scale = math.exp(g.uniform(*map(math.log, SCALE_PRIOR)))
     sigma = g.uniform(0.002, 0.01)

@@ -215,7 +215,8 @@ def _retune(twin: DigitalTwin, address: str, low: float, high: float, seeds: tup
     gains, worst, raced, late = _final(twin, space, [best, z], final, limits, clock)
     step()
     if late:
-        cut = cut or f"; descent's best failed the final race, and the slower candidates would pass the deadline ({_allowed(clock)})"
+        cut = cut or (f"; descent's best failed the final race, and the slower candidates would pass the deadline "
+                      f"({_allowed(clock)})")
     note = (f"{iterations} from the gains in force" + (f" ({rescue})" if rescue else "") + cut
             + ("" if worst is not None else "; no gains found that finish every lap of the envelope"))
     return Retune(gains, gains != on_the_wire(current), worst is not None, axes, worst, objective.laps + raced,

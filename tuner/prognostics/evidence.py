@@ -145,7 +145,8 @@ class ObservationModel:
         info = float(j @ np.linalg.inv(self.covariance(np.array([v]))[0]) @ j)
         return math.inf if info <= 0 else 1.0 / math.sqrt(info)
 
-    def nearest(self, features: tuple[float, ...], span: tuple[float, float], points: int = 2001) -> tuple[float, float]:
+    def nearest(self, features: tuple[float, ...], span: tuple[float, float],
+                points: int = 2001) -> tuple[float, float]:
         """(the value in ``span`` whose features the twin gives nearest a lap's, the squared Mahalanobis distance
         there): about χ² with d − 1 degrees of freedom when the parameter alone explains the lap (0 for one
         feature, which some value always fits)."""

@@ -4,24 +4,23 @@ resampling), from every measurement, every finished lap's features and every lap
 
 A particle is (v, r, a, s, δ): the parameter's value at the current lap, its rate of change per lap, the rate's own
 change per lap (wear that accelerates or slows: a straight line is a = 0; for a part that only wears, half the
-particles hold a = 0 and half wear ever faster, a ≥ 0 in the wear's direction, so the evidence weighs a straight line
-against a curve), how far the evidence's stated scatter is
-to be trusted (a scale on it, learnt from the evidence's own scatter), and where this robot's failure edge lies
-against the twin's (δ ~ N(0, width² + edge_prior²) a priori: the twin's edge is the prior, the robot's own
-finished and failed laps move it; each particle carries it as a distribution on a grid, updated by each lap
-outcome at the particle's value, so resampling for the value never makes it wander). From one lap to the next v ← v + r, r ← r + a + N(0, q²) (q small: what a quadratic does not
+particles hold a = 0 and half wear ever faster, a ≥ 0 in the wear's direction, so the evidence weighs a straight
+line against a curve), how far the evidence's stated scatter is to be trusted (a scale on it, learnt from the
+evidence's own scatter), and where this robot's failure edge lies against the twin's (δ ~ N(0, width² + edge_prior²)
+a priori: the twin's edge is the prior, the robot's own finished and failed laps move it; each particle carries it
+as a distribution on a grid, updated by each lap outcome at the particle's value, so resampling for the value never
+makes it wander). From one lap to the next v ← v + r, r ← r + a + N(0, q²) (q small: what a quadratic does not
 describe; a part that only wears, grip or charge, never recovers: its rate keeps its sign), and with a small
 probability per lap (``RENEWAL``) the part is renewed: v is drawn again from the prior range, its rate kept (a tyre
 swapped, a battery charged: it wears on as before; renewals are proposed more often, near the value the lap's own
-evidence gives, and weighed back to that probability, so a renewal is followed by many particles, not a lucky
-few). A measurement of laps a..b weighs a
-particle by the normal density of the measured value around the particle's mean over those laps
-(v − r·(b − a)/2), with standard error s·σ; a finished lap's features by the observation model's density at v,
-covariance s²·Σ; a lap outcome by the failure model's probability (with a small chance ``SURPRISE`` of a failure,
-or a finish, that the parameter does not explain, so that one odd lap cannot overrule everything else). When the
-effective number of particles falls below half, they are resampled (systematic) and moved by a multivariate
-Liu-West kernel (v, r, a, log s, δ shrunk towards their mean and jittered with their own covariance, so their spread and
-how they move together are kept), so they do not collapse to a few values.
+evidence gives, and weighed back to that probability, so a renewal is followed by many particles, not a lucky few).
+A measurement of laps a..b weighs a particle by the normal density of the measured value around the particle's mean
+over those laps (v − r·(b − a)/2), with standard error s·σ; a finished lap's features by the observation model's
+density at v, covariance s²·Σ; a lap outcome by the failure model's probability (with a small chance ``SURPRISE`` of
+a failure, or a finish, that the parameter does not explain, so that one odd lap cannot overrule everything else).
+When the effective number of particles falls below half, they are resampled (systematic) and moved by a multivariate
+Liu-West kernel (v, r, a, log s shrunk towards their mean and jittered with their own covariance, so their spread
+and how they move together are kept), so they do not collapse to a few values.
 
 The priors scale with ``span``: the distance the forecast cares about (from the value now to where the gains fail).
 
