@@ -246,8 +246,9 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
                                           one_way=direction if service is not None else 0.0,
                                           edge_prior=EDGE_PRIOR * span)
     if kept:
-        kept = measurements_of([a for a in alignments if a.get("lap") is not None and int(a["lap"]) < (first_seen or
-                                math.inf)], address, edge.value_sd_per_lap())
+        before = math.inf if first_seen is None else first_seen
+        kept = measurements_of([a for a in alignments if a.get("lap") is not None and int(a["lap"]) < before],
+                               address, edge.value_sd_per_lap())
         kept = [m for m in kept if m.lap <= now_lap]
     state = estimate(kept, outs, now_lap, settings, failure, seed, obs, model)
     life = remaining_life(state, failure, settings.q, seed + 1,
