@@ -34,6 +34,7 @@ import numpy as np
 from tuner.history.trend import measured
 from tuner.prognostics import (FilterSettings, LapObservation, Measurement, ObservationModel, Outcome, estimate,
                                life_sentence, measurement_sigma, remaining_life, retune_advice, service_advice)
+from tuner.prognostics.particle_filter import SCALE_PRIOR
 from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
 from tuner.history.twin_edge import twin_edge
 from tuner.search.envelope import ROBUST_AXES
@@ -47,9 +48,10 @@ MIN_MEASURED_LAPS = 2  # alignments at different laps, at least, for a forecast 
 MIN_TIMED_LAPS = 8  # … or this many finished laps on the gains in force, read through the twin
 EDGE_PRIOR = 0.05  # the robot's failure edge lies within this share of the way to it of the twin's (one sd)
 MISFIT_WINDOW = 8  # the last laps whose features are checked against wear of one parameter alone …
-# … and the most their mean misfit may be: χ²(8)'s 99.9 % point per lap (3.27) for a robot scattering up to the
-# filter's largest noise scale (3×) more than the twin
-MISFIT_LIMIT = 3.0 ** 2 * 26.12 / 8
+CHI2_999_WINDOW = 26.12  # … χ² with MISFIT_WINDOW degrees of freedom: its 99.9 % point …
+# … so the most their mean misfit may be, per lap, for a robot scattering up to the filter's largest noise scale
+# more than the twin
+MISFIT_LIMIT = SCALE_PRIOR[1] ** 2 * CHI2_999_WINDOW / MISFIT_WINDOW
 # where a parameter needs service, and what to do: the worn end of the robust envelope
 SERVICE = {"motion.mu": (min(ROBUST_AXES["motion.mu"]), "replace the tyres"),
            "motor.supply_voltage": (min(ROBUST_AXES["motor.supply_voltage"]), "charge or replace the battery")}
@@ -181,7 +183,6 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     p = twin.space.parameter(address)
     ms = [m for m in measurements_of(alignments, address) if m.lap <= now_lap]
     outs = [o for o in outcomes_of(laps, gains) if o.lap <= now_lap]
-    with_offset = [r for r in laps if r.get("xte_mean_m") is not None]
     timed = observations_of(laps, gains, now_lap, offset=False)
     evidence = {"alignments": len(ms), "laps": len(outs), "failed": sum(o.failed for o in outs),
                 "timed_laps": len(timed)}
@@ -216,7 +217,8 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
             raced=(start, end), laps=raced)
     model = edge.observation
     if model is not None:
-        offset = bool(with_offset) and all(r.get("xte_mean_m") is not None for r in laps if r.get("completed"))
+        offset = (any(r.get("xte_mean_m") is not None for r in laps)
+                  and all(r.get("xte_mean_m") is not None for r in laps if r.get("completed")))
         obs = observations_of(laps, gains, now_lap, offset) if offset else timed
         model = model if offset else model.lap_time_only()
         obs = [o for o in obs if model.reads(o.features)]
@@ -234,8 +236,9 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
             raced=(start, end), laps=raced, failing_value=failure.threshold, misfit=misfit)
     # no lap counted twice: an alignment measured lap times the observations hold already, so only alignments of
     # laps before the first observed lap are evidence beside them
-    first_seen = min((o.lap for o in obs), default=None)
-    kept = ms if first_seen is None else [m for m in ms if m.lap < first_seen]
+    before = min((o.lap for o in obs), default=math.inf)
+    kept = [m for m in measurements_of(alignments, address, edge.value_sd_per_lap()) if m.lap <= now_lap
+            and m.lap < before]
     if not kept and not obs:
         return _no_number(address, now_lap, f"too little evidence to forecast {address}: no alignment and no lap "
                           "the twin can read", evidence, "too little evidence")
@@ -245,11 +248,6 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     settings = settings or FilterSettings(span=span, value_range=(lo_range, hi_range),
                                           one_way=direction if service is not None else 0.0,
                                           edge_prior=EDGE_PRIOR * span)
-    if kept:
-        before = math.inf if first_seen is None else first_seen
-        kept = measurements_of([a for a in alignments if a.get("lap") is not None and int(a["lap"]) < before],
-                               address, edge.value_sd_per_lap())
-        kept = [m for m in kept if m.lap <= now_lap]
     state = estimate(kept, outs, now_lap, settings, failure, seed, obs, model)
     life = remaining_life(state, failure, settings.q, seed + 1,
                           service_limit=service[0] if service is not None else None)

@@ -151,7 +151,6 @@ def _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds)
     # the lap time's slope and scatter where the robot runs well: the ladder's values before its first failure
     before = rows[:any_fail.index(True)] if any(any_fail) else rows
     slope, sd = _lap_times(before)
-    observation = observation_model(before)
     if any(any_fail) and not any_fail[0]:
         i = any_fail.index(True)
         hi = min(i + 1, len(rows) - 1)  # across the first failures and one step beyond
@@ -163,12 +162,13 @@ def _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds)
     rows.sort(key=lambda r: direction * r[0])  # from the least worn
     laps = sum(len(l) for _, l in rows)
     fails = [any(f for f, _, _ in l) for _, l in rows]
+    # what a finished lap shows: from every value before the first failure, the refined ones too (the ladder's
+    # own, should a refined value fail early)
+    observation = observation_model(rows) or observation_model(before)
     if not any(fails):
         return TwinEdge(None, float(end), None, slope, sd, (start, end), laps, observation)
     k = fails.index(True)
     all_fail = [all(f for f, _, _ in l) for _, l in rows]
     upto = all_fail.index(True) + 1 if any(all_fail) else len(rows)  # beyond where every lap fails, nothing to learn
     failure = fit_failure([(v, f) for v, l in rows[:upto] for f, _, _ in l], direction, float(p.upper - p.lower))
-    # the observation model also from the refined values before the first failure
-    observation = observation_model(rows) or observation
     return TwinEdge(failure, rows[k - 1][0] if k else None, rows[k][0], slope, sd, (start, end), laps, observation)
