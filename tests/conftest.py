@@ -7,11 +7,19 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import textwrap
 
 import numpy as np
 import pytest
 import trimesh
+
+
+# A shell without job control starts a background command (`.ci/run &`, nohup in a script) with SIGINT ignored, and
+# a child inherits that: the twin's processes would never see the Ctrl-C the tests send them (a hung controller then
+# ran out its 5 s limit and exited 2 instead of 130). A handler, unlike "ignored", is reset to the default on exec.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -109,16 +109,21 @@ def grid_points(axes: Sequence[Axis]) -> list[dict[str, float]]:
     return [dict(zip([a.address for a in axes], map(float, combo))) for combo in itertools.product(*(a.values for a in axes))]
 
 
-def check_size(axes: Sequence[Axis], seeds: int, firmware: bool = False) -> None:
-    """At most ``MAX_LAPS`` laps (``MAX_FIRMWARE_LAPS`` on the emulated MCU), counted from the axes before any grid
-    is built (a billion points would take all memory building it)."""
+def check_size(axes: Sequence[Axis], seeds: int, firmware: bool = False, one_by_one: str | None = None) -> None:
+    """At most ``MAX_LAPS`` laps (``MAX_FIRMWARE_LAPS`` run one by one: on the emulated MCU, or ``one_by_one``
+    saying what runs them), counted from the axes before any grid is built (a billion points would take all memory
+    building it)."""
     laps = math.prod(a.count for a in axes) * seeds
-    limit, what = (MAX_FIRMWARE_LAPS, "laps on the emulated MCU (about 5 s each) allowed") if firmware else \
+    limit, what = (MAX_FIRMWARE_LAPS, f"laps {one_by_one} allowed") if one_by_one else \
+        (MAX_FIRMWARE_LAPS, "laps on the emulated MCU (about 5 s each) allowed") if firmware else \
         (MAX_LAPS, "one batch holds")
     if laps > limit:
         points = " × ".join(f"{a.count:,}" for a in axes)
         raise TwinError(f"sweep: {points} points × {seeds} seeds is {laps:,} laps, more than the {limit:,} {what}; use "
                         "fewer points or seeds")
+
+
+GAINS = ("control.v_max", "control.kb", "control.kp", "control.ki", "control.kd")
 
 
 def check_program_axes(axes: Sequence[Axis]) -> None:
@@ -127,6 +132,18 @@ def check_program_axes(axes: Sequence[Axis]) -> None:
         if a.address.startswith("control."):
             raise TwinError(f"sweep {a.address}: a 3pi program keeps its own gains (only the twin's own firmware takes "
                             "control.* from the twin); sweep a parameter of the robot or its world")
+
+
+def check_controller_axes(axes: Sequence[Axis], placed: Sequence[str] = ()) -> None:
+    """A controller FMU has its own law: the firmware's gains never reach it; a multi-model's sensors stand where it
+    puts them (``placed``: the addresses its stand-in file sets)."""
+    for a in axes:
+        if a.address in GAINS:
+            raise TwinError(f"sweep {a.address}: the controller FMU drives with its own law (the firmware's gains "
+                            f"{', '.join(GAINS)} never reach it); sweep a parameter of the robot or its world")
+        if a.address in placed:
+            raise TwinError(f"sweep {a.address}: the --stand-in file places the sensors where the multi-model puts "
+                            "them; change the multi-model's sensor parameters instead")
 
 
 def sweep(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int], nthread: int = 0) -> list[Point]:
@@ -142,8 +159,9 @@ def sweep(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int], nthread
 def sweep_firmware(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int],
                    lap: Callable[[DigitalTwin, int], LapResult], on_lap: Callable[[LapResult], None] | None = None
                    ) -> list[Point]:
-    """Every grid point × seed as a lap on the emulated MCU, one after another: ``lap(twin, seed)`` runs one (see
-    :func:`firmware_lap`); points in grid order, as :func:`sweep` gives them. The given twin is not changed."""
+    """Every grid point × seed as a lap run one after another by ``lap(twin, seed)`` (on the emulated MCU:
+    :func:`firmware_lap`; a controller FMU: :func:`controller_lap`); points in grid order, as :func:`sweep` gives
+    them. The given twin is not changed."""
     check_axes(twin, axes)
     check_size(axes, len(seeds), firmware=True)
     grid = grid_points(axes)
@@ -156,6 +174,16 @@ def sweep_firmware(twin: DigitalTwin, axes: Sequence[Axis], seeds: Sequence[int]
             if on_lap:
                 on_lap(laps[-1])
     return points_of(grid, seeds, laps)
+
+
+def controller_lap(controller, limits: LapLimits = LapLimits()) -> Callable[[DigitalTwin, int], LapResult]:
+    """One lap driven by a controller FMU (:class:`twin.fmi.ControllerFmu`; its process is started once and kept
+    between laps, and every lap instantiates the FMU afresh)."""
+    from twin.fmi import run_controller_lap
+
+    def run(twin: DigitalTwin, seed: int) -> LapResult:
+        return run_controller_lap(twin, controller, seed=seed, limits=limits, keep_trace=False)
+    return run
 
 
 def firmware_lap(program, operator: Callable[[], object] | None = None, limits: LapLimits = LapLimits()

@@ -11,7 +11,6 @@ from twin.cli import options as o
 from twin.cli import twin_options as tw
 from twin.cli.output import Output
 from twin.cli.startup import loading
-from twin.errors import TwinError
 
 if TYPE_CHECKING:
     from twin.pil.board import BoardReport
@@ -31,20 +30,7 @@ def add_parser(sub) -> None:
     p.add_argument("--timeout", dest="lap_timeout", type=o.number(0.0, 3600.0, lo_open=True),
                    action=o.deprecated(argparse._StoreAction, "--lap-timeout"), help=argparse.SUPPRESS)
     o.add_firmware(p, "the lap")
-    p.add_argument("--controller-fmu", metavar="C.fmu", help="a controller FMU (FMI 2 or 3 Co-Simulation) drives "
-                   "instead of the firmware, at its sample time: the line sensors' side in, motor voltages or wheel-speed "
-                   "set-points out (the firmware still calibrates)")
-    p.add_argument("--map", action="append", metavar="FMU_VARIABLE=[-][SCALE*]TWIN_PORT[+OFFSET]", help="connect a "
-                   "variable of the --controller-fmu to a twin port, with sign, scale and offset (FMU_VARIABLE = "
-                   "SCALE*TWIN_PORT+OFFSET; e.g. servoRightVal=-1*wheel_duty_right), repeatable (default: by name; "
-                   "an input no port maps keeps its start value)")
-    p.add_argument("--controller-param", action="append", metavar="NAME=VALUE", help="set a parameter of the "
-                   "--controller-fmu before its initialisation, repeatable (default: the FMU's own start values)")
-    p.add_argument("--multi-model", metavar="FILE.mm.json", help="an INTO-CPS multi-model: its one FMU instance that "
-                   "the twin does not stand in for drives, with the multi-model's connections and parameters (with "
-                   "--stand-in)")
-    p.add_argument("--stand-in", metavar="FILE.json", help="the instances of the --multi-model the twin replaces and "
-                   "their variables as twin ports (e.g. examples/intocps-line-follower.json)")
+    o.add_controller(p)
     o.add_db(p, "the lap")
     o.add_json(p)
     o.add_recording(p, "the lap")
@@ -62,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
         from mjcf.maze import Maze
         from twin.core.closed_loop import run_laps
         from twin.core.lap import LapLimits
-        from twin.fmi import ControllerFmu, parse_map, parse_params, read_multi_model, run_controller_lap
+        from twin.fmi import run_controller_lap
         from twin.pil.board import BoardReport, Operator, run_program_lap, runnable_program
         from twin.pil.lap import run_pil_lap
         from twin.viz import recording
@@ -74,27 +60,8 @@ def run(args: argparse.Namespace) -> int:
     twin = tw.twin_from_args(args, robot="3pi" if program is not None and not program.traced else None)
     warning = tw.gains_warning(args, twin)
     limits, keep = LapLimits(timeout_s=args.lap_timeout), bool(args.save or args.view)
-    mcu = controller = None
-    if bool(args.multi_model) != bool(args.stand_in):
-        raise TwinError("--multi-model and --stand-in go together: the multi-model, and the file that says what in it "
-                        "the twin stands in for")
-    if args.multi_model and (args.controller_fmu or args.firmware != "c"):
-        raise TwinError("--multi-model: its controller FMU drives the twin; leave out --controller-fmu and --firmware")
-    for flag, given in (("--map", args.map), ("--controller-param", args.controller_param)):
-        if given and not args.controller_fmu:
-            raise TwinError(f"{flag}: {'maps the variables' if flag == '--map' else 'sets the parameters'} of a "
-                            "--controller-fmu; give one")
-    if args.controller_fmu:
-        if args.firmware != "c":
-            raise TwinError("--controller-fmu: the controller FMU drives instead of the firmware; leave out --firmware")
-        controller = ControllerFmu(args.controller_fmu, parse_map(args.map), int(twin.space.get("sensor.count")),
-                                   twin.space.get("control.dt"), parse_params(args.controller_param))
-    elif args.multi_model:
-        peer = read_multi_model(args.multi_model, args.stand_in)
-        for note in peer.notes:
-            out.say(f"note: {note}")
-        controller = ControllerFmu(peer.fmu, peer.mapping, int(twin.space.get("sensor.count")),
-                                   twin.space.get("control.dt"), peer.parameters, peer.step_s)
+    mcu = None
+    controller, peer = tw.controller_from_args(args, twin, out)
     if controller:
         for name, value in controller.left_at_start.items():
             out.say(f"note: the controller's input {name} keeps its start value {value} (no twin port maps to it)")
@@ -121,8 +88,9 @@ def run(args: argparse.Namespace) -> int:
         summary["mcu"] = mcu.summary()
     if controller:
         summary["controller"] = controller.describe()
-    if args.multi_model:
-        summary["multi_model"] = {"file": args.multi_model, "stand_in": args.stand_in, "controller": peer.instance}
+    if peer:
+        summary["multi_model"] = {"file": args.multi_model, "stand_in": args.stand_in, "controller": peer.instance,
+                                  "twin_values": peer.values}
     with loading():
         from tuner.history import record_lap
 

@@ -179,6 +179,28 @@ def add_firmware(p: argparse.ArgumentParser, what: str, operator: bool = True) -
                        "polled the buttons for a moment with the motors still)")
 
 
+def add_controller(p: argparse.ArgumentParser, what: str = "the lap") -> None:
+    """--controller-fmu with --map and --controller-param, or --multi-model with --stand-in and --coe: a peer's
+    controller FMU drives {what} instead of the firmware (:func:`twin_options.controller_from_args`)."""
+    p.add_argument("--controller-fmu", metavar="C.fmu", help=f"a controller FMU (FMI 2 or 3 Co-Simulation) drives "
+                   f"{what} instead of the firmware, at its sample time: the line sensors' side in, motor voltages, "
+                   "wheel-speed set-points or PWM duties out (the firmware still calibrates)")
+    p.add_argument("--map", action="append", metavar="FMU_VARIABLE=[-][SCALE*]TWIN_PORT[+OFFSET]", help="connect a "
+                   "variable of the --controller-fmu to a twin port, with sign, scale and offset (FMU_VARIABLE = "
+                   "SCALE*TWIN_PORT+OFFSET; e.g. servoRightVal=-1*wheel_duty_right), repeatable (default: by name; "
+                   "an input no port maps keeps its start value)")
+    p.add_argument("--controller-param", action="append", metavar="NAME=VALUE", help="set a parameter of the "
+                   "--controller-fmu before its initialisation, repeatable (default: the FMU's own start values)")
+    p.add_argument("--multi-model", metavar="FILE.mm.json", help="an INTO-CPS multi-model: its one FMU instance that "
+                   f"the twin does not stand in for drives {what}, with the multi-model's connections and parameters "
+                   "(with --stand-in)")
+    p.add_argument("--stand-in", metavar="FILE.json", help="the instances of the --multi-model the twin replaces, "
+                   "their variables as twin ports and where its sensors are (e.g. examples/intocps-line-follower.json)")
+    p.add_argument("--coe", metavar="FILE.coe.json", help="the --multi-model's co-simulation configuration, whose "
+                   "fixed step the controller runs at (default: the *coe.json beside the multi-model or in a folder "
+                   "right below it, one that names the multi-model first)")
+
+
 def add_lap_timeout(p: argparse.ArgumentParser) -> None:
     p.add_argument("--lap-timeout", type=number(0.0, 3600.0, lo_open=True), default=60.0, metavar="SIM_S",
                    help="a lap not done after this many simulated seconds ends as 'timeout' (a 3pi program that has "

@@ -33,6 +33,7 @@ def add_parser(sub) -> None:
     o.add_workers(p, "laps of the batch (threads)")
     o.add_firmware(p, "every lap (avr or a program file: each lap runs on the emulated MCU, one after another on one "
                    "core, about 5 s a lap; a 3pi program keeps its own gains, so control.* cannot be swept with it)")
+    o.add_controller(p, "every lap (one after another, in the controller's own process)")
     o.add_lap_timeout(p)
     p.add_argument("--cluster", metavar="auto|ray://HOST:PORT", help="run each grid point's laps as a Ray task on a "
                    "cluster (pip install -e '.[cluster]'; the generated robot on a built-in track: nodes share no "
@@ -102,9 +103,25 @@ def _sweep_on_mcu(args, twin, program, script, axes, seeds):
         bar.close()
 
 
+def _sweep_with_controller(args, twin, controller, axes, seeds):
+    """Each lap driven by the controller FMU, one after another, with a progress bar."""
+    with loading():
+        from tuner.studies.sweep import controller_lap, sweep_firmware
+        from twin.core.lap import LapLimits
+
+    twin.model()  # built here: a robot or track that cannot be built fails before the first lap
+    lap = controller_lap(controller, LapLimits(timeout_s=args.lap_timeout))
+    bar = progress.bar(args, math.prod(a.count for a in axes) * len(seeds), "sweep laps with the controller FMU", "lap")
+    try:
+        return sweep_firmware(twin, axes, seeds, lap, on_lap=lambda _: bar.update(1))
+    finally:
+        bar.close()
+        controller.close()  # its process frees the FMU and ends
+
+
 def run(args: argparse.Namespace) -> int:
     with loading():
-        from tuner.studies.sweep import check_axes, check_program_axes, check_size, sweep, write_sweep
+        from tuner.studies.sweep import check_axes, check_controller_axes, check_program_axes, check_size, sweep, write_sweep
         from twin.viz import recording
 
     out = Output(args.json)
@@ -112,9 +129,12 @@ def run(args: argparse.Namespace) -> int:
     recording.check_targets(args.save, args.view)
     axes = [parse_axis(a) for a in args.axes]
     on_mcu = args.firmware != "c"
-    check_size(axes, args.seeds, firmware=on_mcu)  # from the counts alone: refused at once, before any grid or twin
-    if on_mcu and args.cluster:
-        raise TwinError("--cluster: the nodes run the twin's C laps; a sweep with --firmware runs locally")
+    with_fmu = bool(args.controller_fmu or args.multi_model)
+    # from the counts alone: refused at once, before any grid or twin
+    check_size(axes, args.seeds, firmware=on_mcu, one_by_one="with a controller FMU, one by one," if with_fmu else None)
+    if (on_mcu or with_fmu) and args.cluster:
+        raise TwinError(f"--cluster: the nodes run the twin's C laps; a sweep with "
+                        f"{'--firmware' if on_mcu else 'a controller FMU'} runs locally")
     program, script = tw.program_from_args(args)
     foreign = program is not None and not program.traced  # a 3pi program other than the twin's own firmware
     if foreign:
@@ -123,14 +143,22 @@ def run(args: argparse.Namespace) -> int:
     warning = tw.gains_warning(args, twin)
     check_axes(twin, axes)
     seeds = list(range(args.seed, args.seed + args.seeds))
-    if on_mcu:
+    controller, peer = tw.controller_from_args(args, twin, out)
+    if controller:
+        check_controller_axes(axes, list(peer.values) if peer else [])
+        points = _sweep_with_controller(args, twin, controller, axes, seeds)
+    elif on_mcu:
         points = _sweep_on_mcu(args, twin, program, script, axes, seeds)
     elif args.cluster:
         points = _sweep_on_cluster(args, twin, axes, seeds, out)
     else:
         points = sweep(twin, axes, seeds, nthread=args.workers)
     meta = {"track": twin.track.name, "seeds": seeds, "firmware": args.firmware,
-            "base": None if foreign else {a: twin.space.get(a) for a in twin.space.addresses if a.startswith("control.")}}
+            "base": None if foreign or controller else {a: twin.space.get(a) for a in twin.space.addresses
+                                                        if a.startswith("control.")},
+            "controller": controller.describe() if controller else None,
+            "multi_model": {"file": args.multi_model, "stand_in": args.stand_in, "controller": peer.instance,
+                            "twin_values": peer.values} if peer else None}
     paths = write_sweep(args.out_dir, axes, points, meta)
     paths["recording"] = recording.save_charts(args.save, args.view, {"sweep": paths["png"]})
     out.document({**meta, "outputs": paths, "points": [p.row() for p in points], "gains_warning": warning})

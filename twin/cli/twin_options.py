@@ -164,3 +164,50 @@ def _choose_motor(twin: DigitalTwin, name: str | None, changes: dict) -> None:
         datasheet, why = choice.datasheet, f"{choice.name}: {choice.reason}"
     use_motor(twin, datasheet, keep=changes)
     log.warning("motor: %s", why)
+
+
+def place_sensors(args: argparse.Namespace, twin: DigitalTwin, values: dict[str, float]) -> None:
+    """Put the twin's line array where a --multi-model's sensors are (``values``: sensor.count, sensor.pitch, cad.S);
+    a --set of those addresses contradicts the stand-in file, and a place the twin's robot cannot take is refused,
+    each in one line."""
+    clash = sorted(set(o.parse_assignments(getattr(args, "set", None))) & set(values))
+    if clash:
+        raise TwinError(f"--set {clash[0]}: the --stand-in file places the sensors where the multi-model puts them "
+                        f"({clash[0]}={values[clash[0]]:g}); leave it out, or drop \"sensor\" from the stand-in file")
+    try:
+        twin.update(values)
+    except (TwinError, ValueError) as e:
+        raise TwinError(f"--stand-in {args.stand_in}: cannot be stood in for: {e}") from None
+
+
+def controller_from_args(args: argparse.Namespace, twin: DigitalTwin, out) -> tuple:
+    """(the checked and mapped controller FMU that drives instead of the firmware, or None; the multi-model run it
+    comes from, or None) of :func:`options.add_controller`'s options; a multi-model places the twin's sensors where
+    its own are, and its notes are said on ``out``."""
+    if bool(args.multi_model) != bool(args.stand_in):
+        raise TwinError("--multi-model and --stand-in go together: the multi-model, and the file that says what in it "
+                        "the twin stands in for")
+    if args.coe and not args.multi_model:
+        raise TwinError("--coe: the co-simulation configuration of a --multi-model; give one")
+    if args.multi_model and (args.controller_fmu or args.firmware != "c"):
+        raise TwinError("--multi-model: its controller FMU drives the twin; leave out --controller-fmu and --firmware")
+    for flag, given in (("--map", args.map), ("--controller-param", args.controller_param)):
+        if given and not args.controller_fmu:
+            raise TwinError(f"{flag}: {'maps the variables' if flag == '--map' else 'sets the parameters'} of a "
+                            "--controller-fmu; give one")
+    if not (args.controller_fmu or args.multi_model):
+        return None, None
+    with loading():
+        from twin.fmi import ControllerFmu, parse_map, parse_params, read_multi_model
+
+    if args.controller_fmu:
+        if args.firmware != "c":
+            raise TwinError("--controller-fmu: the controller FMU drives instead of the firmware; leave out --firmware")
+        return ControllerFmu(args.controller_fmu, parse_map(args.map), int(twin.space.get("sensor.count")),
+                             twin.space.get("control.dt"), parse_params(args.controller_param)), None
+    peer = read_multi_model(args.multi_model, args.stand_in, args.coe)
+    place_sensors(args, twin, peer.values)
+    for note in peer.notes:
+        out.say(f"note: {note}")
+    return ControllerFmu(peer.fmu, peer.mapping, int(twin.space.get("sensor.count")), twin.space.get("control.dt"),
+                         peer.parameters, peer.step_s), peer

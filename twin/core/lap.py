@@ -6,7 +6,8 @@ nearest the centre of rotation (computed by the C loop at every tick, ``lf_locat
 
 * ``off_track``: the centre of rotation is more than ``max_cross_track_m`` from the line, or its progress
   jumps by more than ``max_progress_jump_m`` in one tick (it crossed to another part of the track);
-* ``line_lost``: no sensor has seen the line (calibrated value > 200) for ``max_line_lost_s``;
+* ``line_lost``: no sensor has seen the line (calibrated value > 200) for ``max_line_lost_s`` (judged for the twin's
+  own firmware, whose belief the trace carries; not for a controller FMU or a 3pi program, judged by the rest);
 * ``timeout``: the lap is not done after ``timeout_s`` of simulated time;
 * ``diverged``: the physics produced a non-finite state or MuJoCo raised an error;
 * ``calibration``: after the calibration turn some sensor's range max − min is below
@@ -133,8 +134,11 @@ def event_details(lim: LapLimits) -> dict[str, str]:
 class LapJudge:
     """Follows one simulation's trace chunk by chunk and decides when and how its lap ends."""
 
-    def __init__(self, track: Track, limits: LapLimits, keep_trace: bool = True):
-        self.track, self.limits, self.keep_trace = track, limits, keep_trace
+    def __init__(self, track: Track, limits: LapLimits, keep_trace: bool = True, line_loss: bool = True):
+        """``line_loss``: judge ``line_lost`` from the trace's ``line_seen`` (the twin's own firmware's belief); off
+        for a controller whose belief the twin cannot read (a controller FMU), which is judged by the geometry
+        alone, as a 3pi program is (its board reports the line always seen)."""
+        self.track, self.limits, self.keep_trace, self.line_loss = track, limits, keep_trace, line_loss
         self.u_last: float | None = None  # unwrapped progress at the last tick
         self.s_last = 0.0
         self.prev = (0.0, 0.0, 0.0)  # time, progress and energy at the last tick
@@ -165,7 +169,7 @@ class LapJudge:
         # summed record by record from the last tick's progress (accumulate is sequential), as the C judge sums it:
         # the progress, and so a completed lap's time, does not depend on how the trace was chunked
         u = np.cumsum(np.concatenate([[self.u_last], du]))[1:]
-        seen = rec[:, COL["line_seen"]] > 0
+        seen = rec[:, COL["line_seen"]] > 0 if self.line_loss else np.ones(len(rec), bool)
         last_seen = np.maximum.accumulate(np.where(seen, t, -np.inf))
         last_seen = np.maximum(last_seen, self.t_seen)
         lim = self.limits

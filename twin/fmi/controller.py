@@ -16,7 +16,6 @@ from __future__ import annotations
 import logging
 import os
 import re
-import tempfile
 import weakref
 import zipfile
 from typing import Mapping
@@ -264,7 +263,8 @@ class ControllerFmu:
         return {"fmu": os.path.abspath(self.path), "fmi_version": self.fmi_version, "sample_time_s": self.sample_time,
                 "model_name": self.md.modelName, "inputs": {k.variable: k.expression for k in self.inputs},
                 "outputs": {k.variable: k.expression for k in self.outputs}, "actuation": self.actuation,
-                "left_at_start": dict(self.left_at_start), "parameters": dict(self.parameters)}
+                "left_at_start": dict(self.left_at_start), "parameters": dict(self.parameters),
+                "first_step_inputs": {k.variable: k.at_start for k in self.inputs if k.at_start is not None}}
 
     def start(self) -> WalledController:
         """One lap: a fresh instance of the FMU, instantiated and initialised at time 0 in the controller's own

@@ -8,7 +8,10 @@ sensors and runs the firmware's sensor side (``lf_external_step``: Eqs. 8–9), 
 values, and its outputs reach the motors as the firmware's would on the same robot: with the robot's timing
 (``timing.*``: the read's duration, ``timing.compute``, the PWM's whole counts; set ``timing.compute`` to the
 controller's own compute time on the robot's MCU). The head of this loop carries no mark, so the control callback
-leaves it alone. The lap is judged as every lap is (:class:`twin.core.lap.LapJudge`).
+leaves it alone. The lap is judged as every lap is (:class:`twin.core.lap.LapJudge`) but for line loss: whether the
+controller still sees the line is its own belief, which the twin cannot read (the firmware's threshold is not its; an
+INTO-CPS robot's two sensors straddle the line by design and see it only to turn), so off-track, cut-across and the
+timeout judge it, as they judge a 3pi program.
 """
 
 from __future__ import annotations
@@ -113,7 +116,7 @@ def _calibrate_and_drive(twin, controller, session, seed: int, limits: LapLimits
     model = twin.model()
     params, sensor, physics = twin.control_params(), twin.sensor_model(), twin.physics()
     values = dict(twin.space.values)
-    judge = LapJudge(twin.track, limits, keep_trace)
+    judge = LapJudge(twin.track, limits, keep_trace, line_loss=False)  # its belief about the line is its own
     if controller.sample_time < physics.timestep:
         raise TwinError(f"--controller-fmu {controller.path}: its sample time {controller.sample_time:g} s is "
                         f"shorter than the physics step ({physics.timestep:g} s)")
@@ -149,6 +152,7 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
     period = controller.sample_time
     readers = _readers(sim, data)
     used = [(readers[link.port], link.to_fmu) for link in controller.inputs]
+    first = [link.at_start for link in controller.inputs]  # a replaced instance's outputs at t = 0, or None
     to_left, to_right = (link.from_fmu for link in controller.outputs)
     per_volt = {"voltage": None, "setpoint": full_speed, "duty": 1.0}[controller.actuation]
     chunk = CHUNK_TICKS * max(1, int(np.ceil(period / model.opt.timestep - 1e-9)))
@@ -162,7 +166,9 @@ def _drive(model, data, sim, session, controller, judge, full_speed: float, supp
                 refused = True
                 break
             if due:
-                left, right = session.step(tick * period, period, [to_fmu(read()) for read, to_fmu in used])
+                values = [to_fmu(read()) if tick or start is None else start
+                          for (read, to_fmu), start in zip(used, first)]
+                left, right = session.step(tick * period, period, values)
                 left, right = to_left(left), to_right(right)
                 if per_volt is not None:  # a PWM duty (a set-point: of the no-load speed, as the firmware maps it)
                     left, right = (float(np.clip(w / per_volt, -1.0, 1.0)) * supply for w in (left, right))

@@ -31,13 +31,16 @@ GRAMMAR = "FMU_VARIABLE=[-][SCALE*]TWIN_PORT[+OFFSET|-OFFSET], e.g. servoRightVa
 
 @dataclasses.dataclass(frozen=True)
 class Link:
-    """``variable = scale · port + offset``; ``scaled``: the map gave a scale (a unit conversion asked for)."""
+    """``variable = scale · port + offset``; ``scaled``: the map gave a scale (a unit conversion asked for);
+    ``at_start``: the value an FMU input gets for its first step instead (what a replaced multi-model instance
+    outputs after its initialisation), or None."""
 
     variable: str
     port: str
     scale: float = 1.0
     offset: float = 0.0
     scaled: bool = False
+    at_start: float | None = None
 
     def to_fmu(self, port_value: float) -> float:
         return self.scale * port_value + self.offset

@@ -5,18 +5,22 @@ A multi-model (``*.mm.json``, as the INTO-CPS application writes it) names its F
 input", …]}``) and sets parameters (``"parameters": {"{key}.instance.name": value}``). The stand-in file names the
 instances the twin replaces (a body, sensor blocks) and, for each variable of theirs that the rest of the
 multi-model reads or drives, the twin port it is, as a ``--map`` relation (:mod:`twin.fmi.mapping`):
-``"servo_right_input": "-1*wheel_duty_right"``. What remains must be one FMU instance (the controller): it runs in
-the twin's loop as ``--controller-fmu`` does, with the multi-model's parameters and its connections to the replaced
-instances as its mapping, stepped at the fixed step of a ``*.coe.json`` beside the multi-model if there is one.
+``"servo_right_input": "-1*wheel_duty_right"``. A sensor block may say where it reads the floor (``"sensor":
+{"left_m": …, "ahead_m": …}``, relations of its parameters, which the multi-model sets or its FMU starts with): the
+twin's array then stands there (:func:`_place_array`) and the block's sensor port has no index. An instance may give
+the outputs it has after its initialisation (``"at_start"``), which the controller reads at its first step, as a
+master's initial exchange gives them. What remains must be one FMU instance (the controller): it runs in the twin's
+loop as ``--controller-fmu`` does, with the multi-model's parameters and its connections to the replaced instances as
+its mapping, stepped at the fixed step of its co-simulation configuration (:func:`coe_step`).
 
 The FMU files are found beside the multi-model or in the ``FMUs`` folder of the INTO-CPS project holding it (the
 first folder above it that has one). Refused in one line (TwinError): a file that is not such JSON, an unknown FMU
 key or instance, an FMU file that cannot be found, a connection to a variable the FMU does not have, a parameter of
 the wrong type, a cycle of algebraic connections (outputs that depend at once on inputs connected, round the
 cycle, to themselves), and what the twin cannot stand in for (a variable of a replaced instance the stand-in file
-does not map, a connection between two instances the twin does not replace, more than one remaining instance).
-Parameters of replaced instances (a sensor's position, the body's masses) are not the twin's: :attr:`notes` names
-them.
+does not map, a connection between two instances the twin does not replace, more than one remaining instance,
+sensors that are not a row the twin's array can take). Other parameters of replaced instances (the body's masses)
+are not the twin's: :attr:`MultiModelRun.notes` names them.
 """
 
 from __future__ import annotations
@@ -25,15 +29,20 @@ import dataclasses
 import glob
 import json
 import os
+import math
 import re
+
+import numpy as np
 
 from lf_common.errors import LineFollowerError
 from lf_common.files import input_file
+from line_sensor.geometry import MAX_SENSORS
 from twin.errors import TwinError
 from twin.fmi.mapping import Link, parse_map
 from twin.fmi.parameters import resolve_params
 
 NAME = re.compile(r"(\{[^{}]+\})\.([^.]+)\.(.+)")  # {key}.instance.variable
+PLACE_TOLERANCE_M = 1e-4  # sensors this close to a row of the twin's array stand in as it
 
 
 @dataclasses.dataclass
@@ -46,6 +55,7 @@ class MultiModelRun:
     parameters: dict[str, str]
     step_s: float | None
     notes: list[str]
+    values: dict[str, float] = dataclasses.field(default_factory=dict)  # the twin's array where the sensors are
 
 
 def _read_json(path: str, flag: str) -> dict:
@@ -87,21 +97,76 @@ def find_fmu(mm: str, file: str) -> str | None:
         folder = parent
 
 
-def coe_step(mm: str) -> tuple[float | None, str | None]:
-    """(the fixed step [s] of the one ``*.coe.json`` beside the multi-model, or None; a note, or None)."""
-    found = sorted(glob.glob(os.path.join(os.path.dirname(os.path.abspath(mm)), "*coe.json")))
+def _names_it(doc: dict, mm: str) -> bool:
+    """The coe file's ``multimodel_path`` (relative to the INTO-CPS project) is this multi-model's path's tail."""
+    named = doc.get("multimodel_path")
+    if not isinstance(named, str) or not named.strip():
+        return False
+    tail = os.path.normpath(named.replace("\\", "/")).split(os.sep)
+    return os.path.normpath(os.path.abspath(mm)).split(os.sep)[-len(tail):] == tail
+
+
+def _fixed_step(doc: dict) -> float | None:
+    algorithm = doc.get("algorithm") if isinstance(doc.get("algorithm"), dict) else {}
+    size = algorithm.get("size")
+    if algorithm.get("type") != "fixed-step" or isinstance(size, bool) or not isinstance(size, (int, float)):
+        return None
+    return float(size) if 0 < size <= 1.0 else None
+
+
+def coe_step(mm: str, coe: str | None = None) -> tuple[float | None, str | None]:
+    """(the fixed step [s] of the multi-model's co-simulation configuration, or None; a note, or None).
+
+    ``coe`` names the file (``--coe``); else the ``*coe.json`` files beside the multi-model and in the folders
+    right below it (the INTO-CPS application keeps an experiment's ``*.coe.json`` and each run's ``coe.json``
+    there): those whose ``multimodel_path`` names this multi-model come first, then by path; the note says which
+    was used and what else was found."""
+    if coe is not None:
+        doc = _read_json(coe, "--coe")
+        step = _fixed_step(doc)
+        if step is None:
+            raise TwinError(f"--coe {coe}: no fixed step in (0, 1] s (\"algorithm\": {{\"type\": \"fixed-step\", "
+                            "\"size\": …}})")
+        return step, f"the co-simulation step {step:g} s of {coe}"
+    here = os.path.dirname(os.path.abspath(mm))
+    found = sorted(glob.glob(os.path.join(here, "*coe.json")) + glob.glob(os.path.join(here, "*", "*coe.json")))
     if not found:
         return None, None
-    doc = _read_json(found[0], "--multi-model")
-    algorithm = doc.get("algorithm") or {}
-    size = algorithm.get("size")
-    if algorithm.get("type") != "fixed-step" or not isinstance(size, (int, float)) or not 0 < size <= 1.0:
-        return None, f"{found[0]}: not a fixed step in (0, 1] s; the controller runs at its own step"
-    return float(size), None
+    docs = {}
+    for path in found:
+        try:
+            docs[path] = _read_json(path, "--multi-model")
+        except TwinError:
+            docs[path] = {}  # an unreadable run record is passed over, and named in the note
+    ranked = sorted(found, key=lambda f: (not _names_it(docs[f], mm), f.count(os.sep), f))
+    usable = [f for f in ranked if _fixed_step(docs[f]) is not None]
+    rel = lambda f: os.path.relpath(f, here)  # noqa: E731
+    others = ", ".join(f"{rel(f)} ({'step %g s' % _fixed_step(docs[f]) if _fixed_step(docs[f]) else 'no fixed step'})"
+                       for f in ranked if not usable or f != usable[0])
+    if not usable:
+        return None, f"no fixed step in (0, 1] s in its coe files ({others}); the controller runs at its own step"
+    why = "names this multi-model" if _names_it(docs[usable[0]], mm) else "found first"
+    return _fixed_step(docs[usable[0]]), (f"the co-simulation step {_fixed_step(docs[usable[0]]):g} s of "
+                                          f"{rel(usable[0])} ({why}; choose another with --coe)"
+                                          + (f"; also found: {others}" if others else ""))
 
 
-def _stand_in(path: str) -> dict[str, dict[str, Link]]:
-    """{"{key}.instance": {variable: Link}} of the stand-in file."""
+@dataclasses.dataclass
+class StandIn:
+    """One replaced instance: its variables as twin ports; where it reads the floor if it is a sensor (``left_m``,
+    ``ahead_m`` as relations of its parameters); the outputs it gives after its initialisation, if stated."""
+
+    links: dict[str, Link]
+    place: dict[str, Link] | None
+    at_start: dict[str, float]
+
+
+SENSOR_PORT = re.compile(r"sensor\.(calibrated|raw|white_8bit)(\[\d+\])?")
+PLACE = ("left_m", "ahead_m")
+
+
+def _stand_in(path: str) -> dict[str, StandIn]:
+    """{"{key}.instance": StandIn} of the stand-in file."""
     doc = _read_json(path, "--stand-in")
     instances = doc.get("instances")
     if not isinstance(instances, dict) or not instances:
@@ -112,11 +177,81 @@ def _stand_in(path: str) -> dict[str, dict[str, Link]]:
         if not isinstance(variables, dict) or not all(isinstance(v, str) for v in variables.values()):
             raise TwinError(f"--stand-in {path}: instance {instance!r} has no \"variables\" object of "
                             "variable: relation strings")
+        where = f"--stand-in {path}: instance {instance}"
         try:
-            out[instance] = parse_map([f"{name}={relation}" for name, relation in variables.items()])
+            links = parse_map([f"{name}={relation}" for name, relation in variables.items()])
         except TwinError as e:
-            raise TwinError(f"--stand-in {path}: instance {instance}: {e}") from None
+            raise TwinError(f"{where}: {e}") from None
+        place = entry.get("sensor")
+        if place is not None:
+            if not isinstance(place, dict) or set(place) != set(PLACE) or not all(isinstance(v, str) for v in
+                                                                                   place.values()):
+                raise TwinError(f"{where}: \"sensor\" must give left_m and ahead_m as relations of its parameters, "
+                                "e.g. {\"left_m\": \"-1*lf_position_x\", \"ahead_m\": \"lf_position_y\"}")
+            try:
+                place = parse_map([f"{k}={place[k]}" for k in PLACE])
+            except TwinError as e:
+                raise TwinError(f"{where}: \"sensor\": {e}") from None
+        for name, link in links.items():
+            m = SENSOR_PORT.fullmatch(link.port)
+            if m and bool(m[2]) == (place is not None):
+                raise TwinError(f"{where}: {name}={link.expression}: " + (
+                    "a sensor placed by its parameters (\"sensor\") reads its own port: write it without an index, "
+                    f"e.g. sensor.{m[1]}" if place is not None else
+                    f"give the sensor's index (sensor.{m[1]}[i]) or place the instance with \"sensor\""))
+        at_start = entry.get("at_start", {})
+        if not isinstance(at_start, dict) or any(n not in links for n in at_start) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in at_start.values()):
+            raise TwinError(f"{where}: \"at_start\" must give numbers for variables it maps, e.g. "
+                            "{\"lf_1_sensor_reading\": 1}")
+        out[instance] = StandIn(links, place, {n: float(v) for n, v in at_start.items()})
     return out
+
+
+def _place_array(mm: str, stand_in: str, places: dict[str, tuple[float, float]]) -> tuple[dict, dict[str, int]]:
+    """({address: value} placing the twin's array where the multi-model's sensors are, {instance: sensor index from
+    1, leftmost first}), or one TwinError line: the twin's array is an evenly spaced row across the heading, centred
+    on it, of 2 to 16 sensors."""
+    order = sorted(places, key=lambda i: -places[i][0])
+    left = np.array([places[i][0] for i in order])
+    ahead = np.array([places[i][1] for i in order])
+    shown = ", ".join(f"{i} ({places[i][0] * 1000:+.1f} mm left, {places[i][1] * 1000:.1f} mm ahead)" for i in order)
+    spacing = -np.diff(left)
+    fits = (2 <= len(order) <= MAX_SENSORS and np.ptp(ahead) <= PLACE_TOLERANCE_M and abs(left.mean()) <= PLACE_TOLERANCE_M
+            and (spacing > 0).all() and np.ptp(spacing) <= PLACE_TOLERANCE_M)
+    if not fits:
+        raise TwinError(f"--stand-in {stand_in}: cannot be stood in for: the twin's line array is a row of 2 to "
+                        f"{MAX_SENSORS} "
+                        "sensors, evenly spaced across the heading and centred on it, at one distance ahead "
+                        f"(within {PLACE_TOLERANCE_M * 1000:g} mm); the multi-model {mm} puts them at: {shown}")
+    values = {"sensor.count": len(order), "sensor.pitch": float(spacing.mean()), "cad.S": float(ahead.mean())}
+    return values, {instance: k + 1 for k, instance in enumerate(order)}
+
+
+def _parameter_value(mm: str, fmus: dict, instance: str, name: str, settings: dict) -> float:
+    """A replaced instance's parameter: as the multi-model sets it, else its FMU's start value."""
+    if (instance, name) in settings:
+        value = settings[(instance, name)]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise TwinError(f"--multi-model {mm}: parameter {instance}.{name} = {value!r}: not a number")
+        return float(value)
+    file = find_fmu(mm, fmus[instance.split(".")[0]])
+    if file is None:
+        raise TwinError(f"--multi-model {mm}: {instance}.{name} places a sensor, but the multi-model does not set it "
+                        f"and its FMU {fmus[instance.split('.')[0]]} is not found to read its start value")
+    from fmpy import read_model_description
+
+    try:
+        md = read_model_description(file, validate=False)
+    except Exception as e:  # fmpy raises plain exceptions for broken archives and XML
+        raise TwinError(f"--multi-model {mm}: {file}: its modelDescription.xml cannot be read "
+                        f"({' '.join(str(e).split())[:160]})") from None
+    v = next((v for v in md.modelVariables if v.name == name), None)
+    try:
+        return float(v.start)
+    except (AttributeError, TypeError, ValueError):
+        raise TwinError(f"--multi-model {mm}: {instance}.{name} places a sensor, but the multi-model does not set it "
+                        f"and {os.path.basename(file)} has no such variable with a numeric start value") from None
 
 
 def _json_text(value) -> str:
@@ -126,8 +261,9 @@ def _json_text(value) -> str:
     return value if isinstance(value, str) else repr(value)
 
 
-def read_multi_model(mm: str, stand_in: str) -> MultiModelRun:
-    """The run the twin makes of ``mm`` with the stand-in file ``stand_in``, or one TwinError line."""
+def read_multi_model(mm: str, stand_in: str, coe: str | None = None) -> MultiModelRun:
+    """The run the twin makes of ``mm`` with the stand-in file ``stand_in`` (and the co-simulation configuration
+    ``coe``, else the one found: :func:`coe_step`), or one TwinError line."""
     doc = _read_json(mm, "--multi-model")
     fmus, connections = doc.get("fmus"), doc.get("connections", {})
     parameters = doc.get("parameters", {})
@@ -140,8 +276,8 @@ def read_multi_model(mm: str, stand_in: str) -> MultiModelRun:
         if not isinstance(targets, list):
             raise TwinError(f"--multi-model {mm}: connection {source}: not a list of inputs")
         pairs += [(_split(mm, source), _split(mm, t)) for t in targets]
-    settings = [(_split(mm, name), value) for name, value in parameters.items()]
-    instances = {i for pair in pairs for i, _ in pair} | {i for (i, _), _ in settings}
+    settings = dict((_split(mm, name), value) for name, value in parameters.items())
+    instances = {i for pair in pairs for i, _ in pair} | {i for i, _ in settings}
     for instance in sorted(instances):
         key = instance.split(".")[0]
         if key not in fmus:
@@ -163,37 +299,54 @@ def read_multi_model(mm: str, stand_in: str) -> MultiModelRun:
 
     md = read_controller(file)
     variables = {v.name: v for v in md.modelVariables}
-    mapping: dict[str, Link] = {}
     for (a, va), (b, vb) in pairs:
         for instance, name, other in ((a, va, b), (b, vb, a)):
             if instance == controller and name not in variables:
                 raise TwinError(f"--multi-model {mm}: connection {a}.{va} -> {b}.{vb}: {controller} "
                                 f"({os.path.basename(file)}) has no variable {name!r}")
-            if instance in replaced and other == controller and name not in replaced[instance]:
+            if instance in replaced and other == controller and name not in replaced[instance].links:
                 raise TwinError(f"--multi-model {mm}: cannot be stood in for: {instance}.{name} (connected to "
                                 f"{controller}) is not in the stand-in file {stand_in}")
     _check_cycle(mm, controller, md, pairs)
+    notes, values, used = [], {}, set()
+    placed = {i: r for i, r in replaced.items() if r.place is not None}
+    index: dict[str, int] = {}
+    if placed:
+        where = {}
+        for instance, r in placed.items():
+            left, ahead = (link.to_fmu(_parameter_value(mm, fmus, instance, link.port, settings))
+                           for link in (r.place["left_m"], r.place["ahead_m"]))
+            used |= {(instance, r.place[k].port) for k in PLACE}
+            where[instance] = (left, ahead)
+        values, index = _place_array(mm, stand_in, where)
+        notes.append(f"the twin's line array stands where the multi-model's sensors are: {values['sensor.count']} "
+                     f"sensors {values['sensor.pitch'] * 1000:.4g} mm apart, {values['cad.S'] * 1000:.4g} mm ahead "
+                     f"(sensor.count={values['sensor.count']}, sensor.pitch={values['sensor.pitch']:.6g}, "
+                     f"cad.S={values['cad.S']:.6g}; from the left: "
+                     + ", ".join(f"sensor {k} {i}" for i, k in sorted(index.items(), key=lambda x: x[1])) + ")")
+    mapping: dict[str, Link] = {}
     for (a, va), (b, vb) in pairs:
         if a == b == controller:
             raise TwinError(f"--multi-model {mm}: cannot be stood in for: the connection {a}.{va} -> {b}.{vb} "
                             "(the twin connects the controller only to the ports it stands in for)")
-        if a == controller and b in replaced:  # the controller drives a twin port
-            link = replaced[b][vb]
-            mapping[va] = Link(va, link.port, link.scale, link.offset, link.scaled)
-        elif b == controller and a in replaced:  # a twin port feeds the controller
-            link = replaced[a][va]
-            mapping[vb] = Link(vb, link.port, link.scale, link.offset, link.scaled)
-    notes, given = [], {}
-    for (instance, name), value in settings:
+        for instance, name, theirs, direction in ((b, vb, va, a == controller), (a, va, vb, b == controller)):
+            if instance in replaced and direction:
+                r = replaced[instance]
+                link = r.links[name]
+                port = link.port + (f"[{index[instance]}]" if instance in index and SENSOR_PORT.fullmatch(link.port)
+                                    else "")
+                mapping[theirs] = Link(theirs, port, link.scale, link.offset, link.scaled, r.at_start.get(name))
+    given = {}
+    for (instance, name), value in settings.items():
         if instance == controller:
             given[name] = _json_text(value)
     resolve_params(file, md, given, f"--multi-model {mm}: parameter {controller}.")  # its line names the file
-    ignored = [f"{i}.{n} = {v}" for (i, n), v in settings if i != controller]
+    ignored = [f"{i}.{n} = {v}" for (i, n), v in settings.items() if i != controller and (i, n) not in used]
     if ignored:
-        notes.append(f"the twin uses its own robot and sensors; not used: {', '.join(ignored)}")
-    step, note = coe_step(mm)
+        notes.append(f"the twin uses its own robot{'' if placed else ' and sensors'}; not used: {', '.join(ignored)}")
+    step, note = coe_step(mm, coe)
     notes += [note] if note else []
-    return MultiModelRun(file, controller, mapping, given, step, notes)
+    return MultiModelRun(file, controller, mapping, given, step, notes, values)
 
 
 def _check_cycle(mm: str, controller: str, md, pairs) -> None:
