@@ -121,12 +121,14 @@ def test_the_coe_file_that_names_it_in_a_folder_below(project):
 def test_a_sweep_with_the_multi_model(project, tmp_path):
     mm = multi_model(project, LFR_NON3D)
     done = subprocess.run([sys.executable, "-m", "twin.run", "sweep", "motion.mu=0.5:1.0:2", "--seeds", "1",
-                           "--multi-model", mm, "--stand-in", STAND_IN, "--out-dir", str(tmp_path / "s"), "--json"],
+                           "--multi-model", mm, "--stand-in", STAND_IN, "--out-dir", str(tmp_path / "s"), "--json",
+                           "--controller-param", "forwardRotate=0.6"],  # over the multi-model's 0.5
                           capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert done.returncode == 0, done.stderr
     doc = json.loads(done.stdout)
     assert [p["completion_rate"] for p in doc["points"]] == [1.0, 1.0]
     assert doc["multi_model"]["controller"] == C and doc["controller"]["inputs"]["lfLeftVal"] == "sensor.white_8bit[2]"
+    assert doc["controller"]["parameters"] == {"forwardSpeed": 0.4, "forwardRotate": 0.6, "backwardRotate": 0.1}
 
 
 def _bad(**changes) -> dict:
@@ -191,6 +193,8 @@ def test_a_bad_multi_model_is_one_line(project, capsys, name, doc, needle):
      "sensor's index (sensor.white_8bit[i]) or place the instance with \"sensor\""),
     (["--multi-model", "{mm}", "--stand-in", "{early}"], "\"at_start\" must give numbers for variables it maps"),
     (["--coe", "x.coe.json"], "--coe: the co-simulation configuration of a --multi-model; give one"),
+    (["--multi-model", "{mm}", "--stand-in", STAND_IN, "--map", "lfLeftVal=line_position"],
+     "--map: maps the variables of a --controller-fmu; give one (a --multi-model's mapping is its connections"),
 ])
 def test_bad_multi_model_options_are_one_line(project, capsys, argv, needle):
     mm = multi_model(project, LFR_NON3D)

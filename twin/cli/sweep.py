@@ -122,6 +122,7 @@ def _sweep_with_controller(args, twin, controller, axes, seeds):
 def run(args: argparse.Namespace) -> int:
     with loading():
         from tuner.studies.sweep import check_axes, check_controller_axes, check_program_axes, check_size, sweep, write_sweep
+        from twin.fmi.multi_model import PLACED
         from twin.viz import recording
 
     out = Output(args.json)
@@ -141,11 +142,12 @@ def run(args: argparse.Namespace) -> int:
         check_program_axes(axes)
     twin = tw.twin_from_args(args, robot="3pi" if foreign else None)
     warning = tw.gains_warning(args, twin)
+    if with_fmu:  # before the multi-model is read and says its notes: a refused axis is the one line
+        check_controller_axes(axes, PLACED if args.multi_model else ())
     check_axes(twin, axes)
     seeds = list(range(args.seed, args.seed + args.seeds))
     controller, peer = tw.controller_from_args(args, twin, out)
     if controller:
-        check_controller_axes(axes, list(peer.values) if peer else [])
         points = _sweep_with_controller(args, twin, controller, axes, seeds)
     elif on_mcu:
         points = _sweep_on_mcu(args, twin, program, script, axes, seeds)

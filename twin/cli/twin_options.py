@@ -191,10 +191,12 @@ def controller_from_args(args: argparse.Namespace, twin: DigitalTwin, out) -> tu
         raise TwinError("--coe: the co-simulation configuration of a --multi-model; give one")
     if args.multi_model and (args.controller_fmu or args.firmware != "c"):
         raise TwinError("--multi-model: its controller FMU drives the twin; leave out --controller-fmu and --firmware")
-    for flag, given in (("--map", args.map), ("--controller-param", args.controller_param)):
-        if given and not args.controller_fmu:
-            raise TwinError(f"{flag}: {'maps the variables' if flag == '--map' else 'sets the parameters'} of a "
-                            "--controller-fmu; give one")
+    if args.map and not args.controller_fmu:
+        raise TwinError("--map: maps the variables of a --controller-fmu; give one (a --multi-model's mapping is its "
+                        "connections with the stand-in file's relations)")
+    if args.controller_param and not (args.controller_fmu or args.multi_model):
+        raise TwinError("--controller-param: sets the parameters of a --controller-fmu or a --multi-model's "
+                        "controller; give one")
     if not (args.controller_fmu or args.multi_model):
         return None, None
     with loading():
@@ -206,6 +208,7 @@ def controller_from_args(args: argparse.Namespace, twin: DigitalTwin, out) -> tu
         return ControllerFmu(args.controller_fmu, parse_map(args.map), int(twin.space.get("sensor.count")),
                              twin.space.get("control.dt"), parse_params(args.controller_param)), None
     peer = read_multi_model(args.multi_model, args.stand_in, args.coe)
+    peer.parameters.update(parse_params(args.controller_param))  # the command line over the multi-model's own
     place_sensors(args, twin, peer.values)
     for note in peer.notes:
         out.say(f"note: {note}")

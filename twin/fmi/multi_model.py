@@ -126,12 +126,13 @@ def coe_step(mm: str, coe: str | None = None) -> tuple[float | None, str | None]
         step = _fixed_step(doc)
         if step is None:
             raise TwinError(f"--coe {coe}: no fixed step in (0, 1] s (\"algorithm\": {{\"type\": \"fixed-step\", "
-                            "\"size\": …}})")
+                            "\"size\": …})")
         return step, f"the co-simulation step {step:g} s of {coe}"
     here = os.path.dirname(os.path.abspath(mm))
     found = sorted(glob.glob(os.path.join(here, "*coe.json")) + glob.glob(os.path.join(here, "*", "*coe.json")))
     if not found:
-        return None, None
+        return None, ("no *coe.json beside the multi-model or in a folder right below it: the controller runs at its "
+                      "own step (or control.dt); give its co-simulation step with --coe")
     docs = {}
     for path in found:
         try:
@@ -163,6 +164,7 @@ class StandIn:
 
 SENSOR_PORT = re.compile(r"sensor\.(calibrated|raw|white_8bit)(\[\d+\])?")
 PLACE = ("left_m", "ahead_m")
+PLACED = ("sensor.count", "sensor.pitch", "cad.S")  # the twin's addresses a placed array sets
 
 
 def _stand_in(path: str) -> dict[str, StandIn]:
@@ -208,7 +210,7 @@ def _stand_in(path: str) -> dict[str, StandIn]:
     return out
 
 
-def _place_array(mm: str, stand_in: str, places: dict[str, tuple[float, float]]) -> tuple[dict, dict[str, int]]:
+def _place_array(mm: str, places: dict[str, tuple[float, float]]) -> tuple[dict, dict[str, int]]:
     """({address: value} placing the twin's array where the multi-model's sensors are, {instance: sensor index from
     1, leftmost first}), or one TwinError line: the twin's array is an evenly spaced row across the heading, centred
     on it, of 2 to 16 sensors."""
@@ -220,11 +222,11 @@ def _place_array(mm: str, stand_in: str, places: dict[str, tuple[float, float]])
     fits = (2 <= len(order) <= MAX_SENSORS and np.ptp(ahead) <= PLACE_TOLERANCE_M and abs(left.mean()) <= PLACE_TOLERANCE_M
             and (spacing > 0).all() and np.ptp(spacing) <= PLACE_TOLERANCE_M)
     if not fits:
-        raise TwinError(f"--stand-in {stand_in}: cannot be stood in for: the twin's line array is a row of 2 to "
+        raise TwinError(f"--multi-model {mm}: cannot be stood in for: the twin's line array is a row of 2 to "
                         f"{MAX_SENSORS} "
                         "sensors, evenly spaced across the heading and centred on it, at one distance ahead "
-                        f"(within {PLACE_TOLERANCE_M * 1000:g} mm); the multi-model {mm} puts them at: {shown}")
-    values = {"sensor.count": len(order), "sensor.pitch": float(spacing.mean()), "cad.S": float(ahead.mean())}
+                        f"(within {PLACE_TOLERANCE_M * 1000:g} mm); its sensors are at: {shown}")
+    values = dict(zip(PLACED, (len(order), float(spacing.mean()), float(ahead.mean()))))
     return values, {instance: k + 1 for k, instance in enumerate(order)}
 
 
@@ -318,7 +320,7 @@ def read_multi_model(mm: str, stand_in: str, coe: str | None = None) -> MultiMod
                            for link in (r.place["left_m"], r.place["ahead_m"]))
             used |= {(instance, r.place[k].port) for k in PLACE}
             where[instance] = (left, ahead)
-        values, index = _place_array(mm, stand_in, where)
+        values, index = _place_array(mm, where)
         notes.append(f"the twin's line array stands where the multi-model's sensors are: {values['sensor.count']} "
                      f"sensors {values['sensor.pitch'] * 1000:.4g} mm apart, {values['cad.S'] * 1000:.4g} mm ahead "
                      f"(sensor.count={values['sensor.count']}, sensor.pitch={values['sensor.pitch']:.6g}, "
