@@ -115,7 +115,7 @@ def test_implausible_wire_laps_are_reported_and_never_realigned(monkeypatch):
     """Six implausible laps, each far off the twin's 8.78 s: none starts a re-alignment; a plausible 8.8 s lap
     after them does (0.2 % off, above the 0.1 % threshold). The aligner is a stand-in that notes what it is asked."""
     asked = []
-    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed, limits=None: (
+    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed, limits=None, interval=True: (
         asked.append(measured), types.SimpleNamespace(explained=False, value=None, message="stand-in"))[1])
     twin = DigitalTwin(track="oval")  # 4.9 m
     good = [encode(Event(0.0, "START"))] + [encode(Sample(0.05 * i, 3500, 1, 40.0, 40.0)) for i in range(1, 100)]
@@ -157,7 +157,7 @@ def test_implausible_laps_are_in_the_json_and_on_stderr(tmp_path, capsys):
 
 @pytest.mark.quick
 def test_a_successful_alignment_is_info_not_warning(monkeypatch, caplog):
-    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed, limits=None: types.SimpleNamespace(
+    monkeypatch.setattr(tuner.live.live_twin, "align_lap_time", lambda twin, measured, address, bounds, seed, limits=None, interval=True: types.SimpleNamespace(
         explained=True, value=0.5, message="explained"))
     twin = DigitalTwin(track="oval")
     live = LiveTwin(twin, LiveOptions(threshold=1e-6, k_laps=1))
@@ -179,7 +179,7 @@ def test_an_alignment_is_stamped_with_the_laps_it_measured_not_when_it_arrived(m
 
     release = threading.Event()
 
-    def slow(twin, measured, address, bounds, seed, limits=None):
+    def slow(twin, measured, address, bounds, seed, limits=None, interval=True):
         release.wait(30)
         return types.SimpleNamespace(explained=True, value=0.7, message="stand-in", consistent=(0.69, 0.71))
 

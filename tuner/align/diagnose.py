@@ -107,6 +107,10 @@ class Diagnosis:
     laps: int
     message: str
     source: str
+    ci95: tuple[float, float] | None = None  # if this is the cause, its value's 95 % interval (from the lap time)
+    consistent: tuple[float, float] | None = None  # the values the laps cannot tell from the measurement
+    ranges: tuple[tuple[tuple[float, float], str], ...] = ()  # every disjoint range that explains it: its 95 %
+    # interval ("ci95"), or its consistent range where the lap time does not pin it ("consistent"); the value's first
 
 
 @dataclasses.dataclass(frozen=True)
@@ -134,6 +138,13 @@ def _trace_rms(twin: DigitalTwin, address: str, value: float, tel: Telemetry, se
     return float(np.sqrt(np.mean(wheel_residuals(lap, tel, twin.info.wheel_radius) ** 2)))
 
 
+def explaining(r: LapTimeAlignment) -> tuple[tuple[tuple[float, float], str], ...]:
+    """Every range of values that explains the lap time, with what it is: each solution's 95 % interval ("ci95"),
+    else its consistent range ("consistent"); the chosen value's first."""
+    ordered = sorted(r.solutions, key=lambda x: x.value != r.value)
+    return tuple((tuple(x.ci95), "ci95") if x.ci95 else (tuple(x.consistent), "consistent") for x in ordered)
+
+
 def diagnose_one(twin: DigitalTwin, measured: float, address: str, tel: Telemetry | None = None, seed: int = 0,
                  nthread: int = 0) -> Diagnosis:
     cause = cause_of(twin, address)
@@ -152,7 +163,7 @@ def diagnose_one(twin: DigitalTwin, measured: float, address: str, tel: Telemetr
     rms = _trace_rms(twin, address, r.value, tel, seed) if tel is not None else None
     return Diagnosis(address, cause.what, nominal, r.value, True, r.value / nominal - 1, deviation,
                      rng[0] <= r.value <= rng[1], rng, r.simulated_lap_time_s, rms, len(r.solutions), r.laps,
-                     r.message, cause.source)
+                     r.message, cause.source, r.ci95, r.consistent, explaining(r))
 
 
 def _rank_key(d: Diagnosis):

@@ -31,12 +31,20 @@ to the next (2 % at μ 0.6 with robust gains and the robot's timing). So each va
 fails), and the fastest and slowest of them are kept as its spread. The scan, the brackets and the descent follow
 the medians; the reachable lap times are the medians' intervals, and the single laps seen are reported beside them.
 
-Every lap run on the way is kept. Around each solution, the values whose laps land within ``TOLERANCE`` of the
-measurement, or whose spread of laps holds it, give a range the measurement is consistent with; disjoint ranges are
-all reported (ranges less than ``JUMP`` of the value apart are one: near a limit the noise makes t(p) jagged), and the
-value returned is the one nearest the twin's current value (the robot changed least). When a range is wide
-(lap time hardly depends on the parameter there), the result says the parameter is not identifiable from a
-lap time alone.
+Every lap run on the way is kept. Around each solution, the values the laps cannot tell from the measurement give a
+range it is consistent with: those whose median lies within ``ACCEPT_Z`` σ of one lap of it (σ, the lap-to-lap
+scatter there, from the ranges of the nearest values' laps) or whose spread of laps holds it, widened to the nearest
+value on either side that excludes itself. Disjoint ranges are all reported (ranges less than ``JUMP`` of the value
+apart are one: near a limit the noise makes t(p) jagged), and the value returned is the one nearest the twin's
+current value (the robot changed least). When a range is wide (lap time hardly depends on the parameter there), the
+result says the parameter is not identifiable from a lap time alone.
+
+5. **Interval** (:mod:`tuner.align.lap_interval`): each solution's 95 % interval. The range of 39 laps at it
+   holds one more lap, the robot's, at 95 % whatever the noise's shape; 8 laps either side of it on the same seeds
+   give the slope that turns that range into values (:mod:`tuner.align.calibration`), widened until it lies inside
+   the values the slope was taken over; none where the lap time is not a straight, clearly sloped function there (a
+   limit, or too flat for one lap to pin it). Its coverage, and the consistent range's where there is none, is
+   measured by :mod:`tuner.studies.coverage` (``tests/test_case2.py``, ``benchmarks/bench_case_studies.py``).
 """
 
 from __future__ import annotations
@@ -46,11 +54,11 @@ import math
 
 import numpy as np
 
-from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
 from twin.model.identifiability import unresolved
-from twin.model.space import ChangeCost
+from tuner.align.calibration import local_scatter, median_variance
+from tuner.align.lap_interval import laps_on_seeds, with_intervals
 from tuner.search.space import TunerError
 
 SCAN_POINTS = 8
@@ -86,8 +94,9 @@ class Solution:
 
     value: float
     lap_time_s: float
-    consistent: tuple[float, float]  # values whose laps were within TOLERANCE of the measurement, around it
+    consistent: tuple[float, float]  # values the laps run cannot tell from the measurement, around it
     identifiable: bool  # that range is narrow (< IDENTIFIABLE_SPAN of the value)
+    ci95: tuple[float, float] | None = None  # values whose single lap holds the measurement at 95 % (:func:`_interval`)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,6 +118,7 @@ class LapTimeAlignment:
     bounds: tuple[float, float] | None = None  # the range searched
     single_laps_s: tuple[float, float] | None = None  # fastest and slowest single lap run on the way
     noise_seeds: int = NOISE_SEEDS  # laps per value
+    ci95: tuple[float, float] | None = None  # the chosen solution's 95 % interval (None: not pinned, or no solution)
 
     def summary(self) -> dict:
         d = dataclasses.asdict(self)
@@ -121,13 +131,7 @@ def _lap_times(twin: DigitalTwin, address: str, values, seed: int, nthread: int,
                noise_seeds: int = NOISE_SEEDS) -> list[tuple[float | None, tuple[float, float] | None]]:
     """Each value's (median lap time or None, spread) over ``noise_seeds`` seeds from ``seed``: one batch, or, for a
     parameter that rebuilds the robot, one build per value."""
-    seeds = [seed + k for k in range(noise_seeds)]
-    if twin.space.parameter(address).cost is ChangeCost.REBUILD:
-        results = [r for v in values for r in run_laps(twin.clone({address: float(v)}), [{}] * noise_seeds, seed=seeds,
-                                                       nthread=nthread, limits=limits, keep_traces=False)]
-    else:
-        results = run_laps(twin, [{address: float(v)} for v in values for _ in seeds], seed=seeds * len(values),
-                           nthread=nthread, limits=limits, keep_traces=False)
+    results = laps_on_seeds(twin, address, values, seed, nthread, limits, noise_seeds)
     out = []
     for i in range(len(values)):
         laps = [r.lap_time_s for r in results[i * noise_seeds:(i + 1) * noise_seeds] if r.completed]
@@ -232,12 +236,21 @@ def _solve(twin, address, a, ta, b, tb, m, seed, nthread, max_iter, trace, k0, l
     return value, lap, k
 
 
-def _solutions(found: list[tuple[float, float]], trace: list[AlignPoint], m: float) -> list[Solution]:
-    """One :class:`Solution` per disjoint range of values whose laps land within TOLERANCE of m (the median, or the
-    spread of single laps widened by TOLERANCE)."""
-    done = sorted((p.value, p.lap_time_s, p.spread_s or (p.lap_time_s, p.lap_time_s)) for p in trace
-                  if p.lap_time_s is not None)
-    near = [abs(t - m) <= TOLERANCE * m or lo - TOLERANCE * m <= m <= hi + TOLERANCE * m for _, t, (lo, hi) in done]
+ACCEPT_Z = 2.2  # a value is consistent when its median is within this many σ of one lap (t at 0.975, ~10 d.o.f.)
+
+
+def _solutions(found: list[tuple[float, float]], trace: list[AlignPoint], m: float,
+               noise_seeds: int = NOISE_SEEDS) -> list[Solution]:
+    """One :class:`Solution` per disjoint range of values the laps cannot tell from the measurement: the values whose
+    median lap is within ``ACCEPT_Z`` σ of one lap of m (σ: :func:`tuner.align.calibration.local_scatter`; at least
+    TOLERANCE of m) or
+    whose single laps' spread holds it, widened to the nearest value on each side whose laps do not (or fail):
+    between the two, nothing was run that excludes a value."""
+    done = sorted({p.value: (p.lap_time_s, p.spread_s) for p in trace}.items())  # the last laps run at a value
+    scatter = local_scatter(done, noise_seeds)
+    near = [t is not None and (abs(t - m) <= max(TOLERANCE * m, ACCEPT_Z * sd * math.sqrt(1 + median_variance(
+        noise_seeds))) or (spread is not None and spread[0] - TOLERANCE * m <= m <= spread[1] + TOLERANCE * m))
+            for (_, (t, spread)), sd in zip(done, scatter)]
     out: list[Solution] = []
     for value, lap in sorted(found):
         if abs(lap - m) > ACCEPT * m:
@@ -248,10 +261,14 @@ def _solutions(found: list[tuple[float, float]], trace: list[AlignPoint], m: flo
         while j - 1 >= 0 and near[j - 1]:  # widen over neighbours that are within tolerance too
             j -= 1
             lo = min(lo, done[j][0])
+        if j - 1 >= 0:  # to the first value that excludes itself: the measurement may lie anywhere short of it
+            lo = min(lo, done[j - 1][0])
         j = i
         while j + 1 < len(done) and near[j + 1]:
             j += 1
             hi = max(hi, done[j][0])
+        if j + 1 < len(done):
+            hi = max(hi, done[j + 1][0])
         if out and lo <= out[-1].consistent[1] + JUMP * abs(out[-1].consistent[1]):
             # the same range as the last solution, or one a noise-jagged stretch of t(p) splits from it by less than
             # JUMP of the value: one range, its value the nearer to the measurement
@@ -277,11 +294,13 @@ def align_lap_time(
     limits: LapLimits = LapLimits(),
     bounds_flag: str = "--bounds",
     noise_seeds: int = NOISE_SEEDS,
+    interval: bool = True,
 ) -> LapTimeAlignment:
     """Align one parameter to a measured lap time (see the module docstring). A parameter that rebuilds the robot
     (``cad.*``) is searched too, one build per value, so it costs far more wall time. ``limits``: when a lap fails
     (a timeout near twice the measurement spares the scan laps that crawl to the default 60 s). ``bounds_flag``: how
-    the caller's user searches another range (the messages name it)."""
+    the caller's user searches another range (the messages name it). ``interval``: give each solution its 95 %
+    interval (55 laps more per solution, up to 165 where the span widens)."""
     if not (isinstance(measured_lap_time_s, (int, float)) and math.isfinite(measured_lap_time_s) and measured_lap_time_s > 0):
         raise TunerError(f"measured lap time: must be a finite number of seconds > 0, got {measured_lap_time_s!r}")
     p = twin.space.parameter(address)
@@ -342,7 +361,8 @@ def align_lap_time(
                                noise_seeds)
         iterations += k
         found.append((value, lap))
-    return _result(address, found, m, iterations, trace, intervals, current, (lo, hi), noise_seeds, None)
+    result = _result(address, found, m, iterations, trace, intervals, current, (lo, hi), noise_seeds, None)
+    return with_intervals(result, twin, m, seed, nthread, limits) if interval else result
 
 
 def _spans(intervals: list[tuple[float, float]]) -> str:
@@ -367,7 +387,7 @@ def _result(address: str, found: list[tuple[float, float]], m: float, iterations
     laps = len(trace) * noise_seeds
     extra = {"reachable_intervals_s": intervals, "bounds": bounds, "single_laps_s": _single_laps_seen(trace),
              "noise_seeds": noise_seeds}
-    solutions = _solutions(found, trace, m)
+    solutions = _solutions(found, trace, m, noise_seeds)
     if not solutions:
         if found:  # brackets were searched but no lap got within ACCEPT: report the closest
             value, lap = min(found, key=lambda vt: abs(vt[1] - m))

@@ -78,15 +78,17 @@ def run(args: argparse.Namespace) -> int:
     out.document(doc)
     nominal = f"{report.nominal_lap_time_s:.3f} s" if report.nominal_lap_time_s else "no lap"
     out.say(f"measured {report.measured_lap_time_s:.3f} s; the twin as it is: {nominal}")
-    out.say(f"{'rank':>4}  {'cause':52s} {'value':>10} {'change':>8}  {'plausible range':>20}"
+    out.say(f"{'rank':>4}  {'cause':52s} {'value':>10} {'95 % interval':>21} {'change':>8}  {'plausible range':>20}"
             + ("  trace rms" if tel is not None else ""))
     for i, d in enumerate(report.candidates, start=1):
         if not d.explained:
-            out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':52s} {'–':>10} {'':>8}  does not explain it")
+            out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':52s} {'–':>10} {'':>21} {'':>8}  does not explain it")
             continue
         rng = f"[{d.plausible_range[0]:.3g}, {d.plausible_range[1]:.3g}]" + ("" if d.plausible else " ✗")
         rms = f"  {d.trace_rms_radps:.2f} rad/s" if d.trace_rms_radps is not None else ""
-        out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':52s} {d.value:>10.4g} {d.change * 100:>+7.1f}%  {rng:>20}{rms}")
+        ci = f"[{d.ci95[0]:.4g}, {d.ci95[1]:.4g}]" if d.ci95 else "not pinned"
+        out.say(f"{i:>4}  {d.cause + ' (' + d.address + ')':52s} {d.value:>10.4g} {ci:>21} {d.change * 100:>+7.1f}%  "
+                f"{rng:>20}{rms}")
     for s in report.skipped:
         out.say(f"skipped {s}")
     if report.joint is not None:
