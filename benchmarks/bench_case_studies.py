@@ -13,7 +13,7 @@
 
 ``--trials N``: robots per procedure in the coverage study (default 30; 0 skips it). ``--quick``: gains tuned for
 one iteration, each alignment stopped after 2 iterations (the lap time's on one noise seed, the recorded run's of
-R_M alone), 2 robots per procedure, a study of 2 designs × 2 laps tuned for one iteration (for CI: the script cannot
+R_M alone), 1 robot per procedure, a study of 2 designs × 2 laps tuned for one iteration (for CI: the script cannot
 rot; the figures are not the table's).
 """
 
@@ -122,7 +122,7 @@ def main() -> None:
     a = align_telemetry(o, read_telemetry(path), list(hidden), **iterations)
     out["align_telemetry"] = {"wall_s": time.perf_counter() - t0, "laps": a.laps,
                               "recovered": {p.address: p.value for p in a.parameters}, "hidden": hidden}
-    trials = 2 if args.quick else args.trials
+    trials = 1 if args.quick else args.trials
     if trials > 0:
         out["coverage"] = coverage_study(gains, trials)
     if not args.no_design:

@@ -27,7 +27,8 @@ LIMIT_S = 600  # wall seconds for one --quick run on a loaded 2-core machine (th
 # per script: the start of each row it prints (its own words), each of which must come with a measured number
 FIGURES = {
     "bench_act.py": ["failed laps: plain", "laps at 20× real time ("],
-    "bench_case_studies.py": ["align to a lap time", "align to a recorded run", "default design study"],
+    "bench_case_studies.py": ["align to a lap time", "align to a recorded run", "lap_time  :", "diagnose  :",
+                              "telemetry :", "default design study"],
     "bench_closed_loop.py": ["closed loop (C)", "ceiling (mj_step)", "Python loop", "closed / ceiling",
                              "with the trace kept", "closed / Python"],
     "bench_cluster.py": ["local, 1 worker", "local, 2 workers", "Ray, 1 CPU", "Ray, 2 CPUs", "model, 2 CPUs"],
