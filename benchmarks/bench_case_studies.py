@@ -20,23 +20,18 @@ rot; the figures are not the table's).
 from __future__ import annotations
 
 import argparse
-import concurrent.futures as cf
-import functools
 import json
-import multiprocessing
 import os
 import sys
 import tempfile
 import time
-
-import numpy as np
 
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.telemetry.jsonl import lap_lines, read_telemetry, write_telemetry
 from tuner.align.lap_time import align_lap_time
 from tuner.align.trace import align_telemetry
-from tuner.studies.coverage import PROCEDURES, ROBOT_SEED0, coverage, draw, run_trial, wilson
+from tuner.studies.coverage import PROCEDURES, ROBOT_SEED0, coverage, run_study, wilson
 from tuner.studies.design import DEFAULT_GRID, grid, study
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
@@ -51,42 +46,20 @@ HIDDEN_MU = 0.62  # the lap-time case's robot: dusty tyres (documented range 0.3
 COVERAGE_ADDRESSES = ("motion.mu", "motor.supply_voltage", "motor.R_M")
 
 
-@functools.cache
-def _oval(gains: tuple) -> DigitalTwin:
-    t = DigitalTwin(track="oval")
-    t.update(dict(gains))
-    return t
-
-
-def _trial(job: tuple):
-    procedure, address, hidden, seed, gains = job
-    return run_trial(_oval(gains), procedure, address, hidden, seed)
-
-
 def coverage_study(gains: dict, per_procedure: int) -> dict:
     """The coverage study: ``per_procedure`` robots that finish for each procedure, in two worker processes."""
-    key = tuple(sorted(gains.items()))
-    twin = _oval(key)
-    draws = draw(COVERAGE_ADDRESSES, 3 * per_procedure * len(PROCEDURES), np.random.default_rng(2026), twin)
-    seeds = [ROBOT_SEED0 + k for k in range(len(draws))]
-    robots = run_laps(twin, [{a: v} for a, v in draws], seed=seeds, keep_traces=False)
-    kept = [(a, v, s) for (a, v), s, r in zip(draws, seeds, robots) if r.completed]
-    jobs = [(PROCEDURES[k % len(PROCEDURES)], a, v, s, key) for k, (a, v, s) in enumerate(kept)]
-    jobs = [j for p in PROCEDURES for j in [j for j in jobs if j[0] == p][:per_procedure]]
     t0 = time.perf_counter()
-    with cf.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
-        trials = list(pool.map(_trial, jobs))
-    out = {"wall_s": time.perf_counter() - t0, "robots_drawn": len(draws), "robots_finished": len(kept),
-           "procedures": {}}
+    done = run_study("oval", gains, PROCEDURES, per_procedure, COVERAGE_ADDRESSES, 2026)
+    out = {"wall_s": time.perf_counter() - t0, "robots_drawn": done.robots_drawn,
+           "robots_finished": done.robots_finished, "procedures": {}}
     for p in PROCEDURES:
-        mine = [t for t in trials if t.procedure == p]
+        mine = [t for t in done.trials if t.procedure == p]
         covered, n = coverage(mine)
         out["procedures"][p] = {
             "covered": covered, "trials": n, "wilson95": wilson(covered, n),
             "intervals": sum(t.kind == "ci95" for t in mine), "sets": sum(t.kind == "consistent" for t in mine),
             "unexplained": sum(t.kind == "none" for t in mine), "laps": sum(t.laps for t in mine),
-            "cpu_s": sum(t.cpu_s for t in mine),
-            "misses": [t.row() for t in mine if not t.covered]}
+            "cpu_s": sum(t.cpu_s for t in mine), "misses": [t.row() for t in mine if not t.covered]}
     return out
 
 

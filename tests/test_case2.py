@@ -7,9 +7,6 @@ their grip still finishes, and the twin finds out why from its lap time or its t
 
 from __future__ import annotations
 
-import concurrent.futures as cf
-import functools
-import multiprocessing
 
 import numpy as np
 import pytest
@@ -20,7 +17,7 @@ from twin.telemetry.jsonl import lap_lines, read_telemetry, telemetry_header, wr
 from tuner.align.lap_time import align_lap_time
 from tuner.align.trace import align_telemetry
 from tuner.align.diagnose import diagnose
-from tuner.studies.coverage import ROBOT_SEED0, Trial, coverage, draw, pass_rule, run_trial
+from tuner.studies.coverage import coverage, pass_rule, run_study
 
 ROBOT_SEED = 7  # the robot's noise is not the twin's (seed 0)
 
@@ -82,33 +79,6 @@ def test_a_parameter_the_run_cannot_pin_is_named_with_the_evidence(robust_twin, 
     assert volts.identifiable and volts.value == pytest.approx(4.9, rel=0.05)
 
 
-@functools.cache
-def _fast_oval(gains: tuple[tuple[str, float], ...]) -> DigitalTwin:
-    t = DigitalTwin(track="oval")
-    t.update(dict(gains))
-    return t
-
-
-def _trial(job: tuple) -> Trial:
-    procedure, address, hidden, seed, gains = job
-    return run_trial(_fast_oval(gains), procedure, address, hidden, seed)
-
-
-def _study(gains: dict, procedures: tuple[str, ...], count: int, rng_seed: int) -> list[Trial]:
-    """``count`` trials whose robot finishes: hidden values drawn across the documented ranges of μ, the battery
-    voltage and the winding resistance in turn (a draw whose robot does not finish, found in one batch of the
-    robots' laps, is passed over), the procedures in turn, in two worker processes."""
-    twin = _fast_oval(tuple(sorted(gains.items())))
-    draws = draw(ADDRESSES, 3 * count, np.random.default_rng(rng_seed), twin)
-    seeds = [ROBOT_SEED0 + k for k in range(len(draws))]
-    robots = run_laps(twin, [{a: v} for a, v in draws], seed=seeds, keep_traces=False)
-    kept = [(a, v, s) for (a, v), s, r in zip(draws, seeds, robots) if r.completed][:count]
-    assert len(kept) == count, "too few robots finished"
-    jobs = [(procedures[k % len(procedures)], a, v, s, tuple(sorted(gains.items()))) for k, (a, v, s) in enumerate(kept)]
-    with cf.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
-        return list(pool.map(_trial, jobs))
-
-
 ADDRESSES = ("motion.mu", "motor.supply_voltage", "motor.R_M")
 
 
@@ -121,7 +91,7 @@ def test_lap_time_and_diagnosis_intervals_cover_hidden_values_across_the_documen
     (pass_rule, binomial). Measured: 39 of 40, 28 of them by a 95 % interval (the miss: a robot at μ 0.525, just
     above the consistent set [0.489, 0.523] near the grip limit, where no interval is given); 255 s of CPU, 135 s
     in two worker processes."""
-    trials = _study(plain_gains, ("lap_time", "diagnose"), 40, 36)
+    trials = run_study("oval", plain_gains, ("lap_time", "diagnose"), 20, ADDRESSES, 36).trials
     rule = pass_rule(40, 36)
     assert rule.pass_if_claimed > 0.95 and rule.pass_if[0.8] < 0.08  # the rule is what the docstring says
     covered, n = coverage(trials)
@@ -134,7 +104,7 @@ def test_telemetry_intervals_cover_hidden_values_across_the_documented_ranges(pl
     set): 20 robots. Pass: at least 18 of 20: a 95 % procedure passes with probability 0.925, one of 80 % with 0.206,
     of 70 % with 0.035 (pass_rule). Measured: 20 of 20, 13 of them by a 95 % interval; 212 s of CPU, 112 s in two
     worker processes."""
-    trials = _study(plain_gains, ("telemetry",), 20, 37)
+    trials = run_study("oval", plain_gains, ("telemetry",), 20, ADDRESSES, 37).trials
     rule = pass_rule(20, 18)
     assert rule.pass_if_claimed > 0.92 and rule.pass_if[0.7] < 0.04
     covered, n = coverage(trials)

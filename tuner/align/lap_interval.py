@@ -20,7 +20,7 @@ MAX_SPAN = 0.10  # the widest span: beyond it the value is not pinned anyway (la
 
 
 def laps_on_seeds(twin: DigitalTwin, address: str, values, seed: int, nthread: int, limits: LapLimits,
-                 noise_seeds: int) -> list:
+                  noise_seeds: int) -> list:
     """Each value's laps on ``noise_seeds`` seeds from ``seed``, value by value: one batch, or, for a parameter that
     rebuilds the robot, one build per value."""
     seeds = [seed + k for k in range(noise_seeds)]
@@ -31,8 +31,8 @@ def laps_on_seeds(twin: DigitalTwin, address: str, values, seed: int, nthread: i
                     nthread=nthread, limits=limits, keep_traces=False)
 
 
-def solution_interval(twin: DigitalTwin, address: str, value: float, m: float, bounds: tuple[float, float], seed: int,
-              nthread: int, limits: LapLimits) -> tuple[tuple[float, float] | None, int]:
+def solution_interval(twin: DigitalTwin, address: str, value: float, m: float, bounds: tuple[float, float],
+                      seed: int, nthread: int, limits: LapLimits) -> tuple[tuple[float, float] | None, int]:
     """(the 95 % interval of the values whose single lap would be the measured one, or None if the lap time cannot
     pin it; laps run): ``INTERVAL_SEEDS`` laps at the value (their range holds one more lap at 95 %, whatever the
     noise's shape), ``SLOPE_SEEDS`` on the same seeds at ``span`` either side for the slope, inverted by

@@ -96,7 +96,7 @@ class Solution:
     lap_time_s: float
     consistent: tuple[float, float]  # values the laps run cannot tell from the measurement, around it
     identifiable: bool  # that range is narrow (< IDENTIFIABLE_SPAN of the value)
-    ci95: tuple[float, float] | None = None  # values whose single lap holds the measurement at 95 % (:func:`_interval`)
+    ci95: tuple[float, float] | None = None  # values whose single lap holds the measurement at 95 % (lap_interval)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -243,9 +243,8 @@ def _solutions(found: list[tuple[float, float]], trace: list[AlignPoint], m: flo
                noise_seeds: int = NOISE_SEEDS) -> list[Solution]:
     """One :class:`Solution` per disjoint range of values the laps cannot tell from the measurement: the values whose
     median lap is within ``ACCEPT_Z`` σ of one lap of m (σ: :func:`tuner.align.calibration.local_scatter`; at least
-    TOLERANCE of m) or
-    whose single laps' spread holds it, widened to the nearest value on each side whose laps do not (or fail):
-    between the two, nothing was run that excludes a value."""
+    TOLERANCE of m) or whose single laps' spread holds it, widened to the nearest value on each side whose laps do
+    not (or fail): between the two, nothing was run that excludes a value."""
     done = sorted({p.value: (p.lap_time_s, p.spread_s) for p in trace}.items())  # the last laps run at a value
     scatter = local_scatter(done, noise_seeds)
     near = [t is not None and (abs(t - m) <= max(TOLERANCE * m, ACCEPT_Z * sd * math.sqrt(1 + median_variance(

@@ -192,7 +192,7 @@ class LiveTwin:
             try:
                 r = align_lap_time(other, measured, self.o.address, bounds=self.o.bounds, seed=self.o.seed,
                                    limits=LapLimits(timeout_s=max(2 * measured, measured + 10)),
-                                   interval=False)  # beside the robot: its consistent range, not 24-72 laps more
+                                   interval=False)  # beside the robot: its consistent range, not 55-165 laps more
                 interval = getattr(r, "consistent", None)
                 self._result = {"explained": r.explained, "value": r.value, "message": r.message, "reason": reason,
                                 "measured_lap_time_s": measured, "before": values[self.o.address], "laps": laps,

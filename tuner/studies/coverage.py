@@ -22,8 +22,10 @@ a stated probability, and how likely a procedure of lower coverage is to pass it
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import dataclasses
-import math
+import functools
+import multiprocessing
 import os
 import tempfile
 import time
@@ -87,7 +89,7 @@ def run_trial(twin: DigitalTwin, procedure: str, address: str, hidden: float, ro
             path = write_telemetry(os.path.join(where, "run.jsonl"),
                                    lap_lines(lap, telemetry_header(twin, twin.track.name, robot_seed), 2))
             (p,) = align_telemetry(twin, read_telemetry(path), [address], nthread=nthread).parameters
-        stated, kind = (p.ci95, "ci95") if p.identifiable and p.ci95 is not None else (p.consistent, "consistent")
+        sets = [(p.ci95, "ci95") if p.identifiable and p.ci95 is not None else (p.consistent, "consistent")]
     else:
         from tuner.align.diagnose import diagnose_one, explaining
 
@@ -95,21 +97,57 @@ def run_trial(twin: DigitalTwin, procedure: str, address: str, hidden: float, ro
             from tuner.align.lap_time import align_lap_time
 
             r = align_lap_time(twin, lap.lap_time_s, address, nthread=nthread)
-            ranges, explained = explaining(r), r.explained
+            ranges = explaining(r)
         else:
             r = diagnose_one(twin, lap.lap_time_s, address, nthread=nthread)
-            ranges, explained = r.ranges, r.explained
+            ranges = r.ranges
         laps = r.laps
         # every range that explains the lap is the answer (the value given is the one nearest the twin's own)
-        sets = list(ranges) if explained else []
-        hit = [x for x in sets if x[0][0] <= hidden <= x[0][1]]
-        stated, kind = (hit or sets or [(None, "none")])[0]
-        covered = bool(hit)
-        return Trial(procedure, address, hidden, robot_seed, True, tuple(stated) if stated else None, kind, covered,
-                     laps, time.process_time() - c0)
-    covered = stated is not None and stated[0] <= hidden <= stated[1]
-    return Trial(procedure, address, hidden, robot_seed, True, tuple(stated) if stated else None, kind, covered, laps,
+        sets = list(ranges) if r.explained else []
+    hit = [x for x in sets if x[0][0] <= hidden <= x[0][1]]
+    stated, kind = (hit or sets or [(None, "none")])[0]
+    return Trial(procedure, address, hidden, robot_seed, True, tuple(stated) if stated else None, kind, bool(hit), laps,
                  time.process_time() - c0)
+
+
+@functools.cache
+def _twin(track: str, gains: tuple[tuple[str, float], ...]) -> DigitalTwin:
+    """The twin of a worker process (built once per process and kept: laps reuse its model)."""
+    twin = DigitalTwin(track=track)
+    twin.update(dict(gains))
+    return twin
+
+
+def _job(job: tuple) -> Trial:
+    procedure, address, hidden, seed, track, gains = job
+    return run_trial(_twin(track, gains), procedure, address, hidden, seed)
+
+
+@dataclasses.dataclass(frozen=True)
+class Study:
+    trials: list[Trial]
+    robots_drawn: int
+    robots_finished: int
+
+
+def run_study(track: str, gains: dict, procedures: Sequence[str], per_procedure: int, addresses: Sequence[str],
+              rng_seed: int, workers: int = 2) -> Study:
+    """``per_procedure`` trials of each procedure whose robots finish: hidden values drawn (:func:`draw`) for
+    ``addresses`` in turn, the robots on seeds from :data:`ROBOT_SEED0` raced in one batch (a draw whose robot does
+    not finish is passed over), the procedures in turn over the robots that finish; run in ``workers`` processes.
+    ValueError if too few robots finish."""
+    key = tuple(sorted(gains.items()))
+    twin = _twin(track, key)
+    draws = draw(addresses, 3 * per_procedure * len(procedures), np.random.default_rng(rng_seed), twin)
+    seeds = [ROBOT_SEED0 + k for k in range(len(draws))]
+    robots = run_laps(twin, [{a: v} for a, v in draws], seed=seeds, keep_traces=False)
+    kept = [(a, v, s) for (a, v), s, r in zip(draws, seeds, robots) if r.completed]
+    jobs = [(procedures[k % len(procedures)], a, v, s, track, key) for k, (a, v, s) in enumerate(kept)]
+    jobs = [j for p in procedures for j in [j for j in jobs if j[0] == p][:per_procedure]]
+    if len(jobs) < per_procedure * len(procedures):
+        raise ValueError(f"coverage study: only {len(kept)} of {len(draws)} robots finished their lap")
+    with cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return Study(list(pool.map(_job, jobs)), len(draws), len(kept))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -121,11 +159,6 @@ class PassRule:
     claimed: float
     pass_if_claimed: float  # the probability that a procedure of the claimed coverage passes
     pass_if: dict[float, float]  # …and one of lower coverage
-
-    def text(self) -> str:
-        lower = ", ".join(f"{100 * c:g} %: {p:.3f}" for c, p in sorted(self.pass_if.items(), reverse=True))
-        return (f"at least {self.least} of {self.n} covered: a {100 * self.claimed:g} % procedure passes with "
-                f"probability {self.pass_if_claimed:.3f}; lower coverage passes with {lower}")
 
 
 def pass_rule(n: int, least: int, claimed: float = 0.95, lower: Sequence[float] = (0.9, 0.8, 0.7)) -> PassRule:
@@ -142,11 +175,8 @@ def coverage(trials: Sequence[Trial]) -> tuple[int, int]:
 
 
 def wilson(covered: int, n: int, level: float = 0.95) -> tuple[float, float]:
-    """Wilson's score interval of a binomial proportion (Wilson 1927)."""
+    """Wilson's score interval of a binomial proportion (Wilson 1927), as scipy computes it."""
     if n == 0:
         return (0.0, 1.0)
-    z = float(stats.norm.ppf(0.5 + level / 2))
-    p = covered / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return (max(0.0, centre - half), min(1.0, centre + half))
+    ci = stats.binomtest(covered, n).proportion_ci(level, method="wilson")
+    return (float(ci.low), float(ci.high))

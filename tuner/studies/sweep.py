@@ -35,6 +35,7 @@ from twin.core.digital_twin import DigitalTwin  # noqa: E402
 from twin.errors import TwinError  # noqa: E402
 from twin.pil import run_pil_lap  # noqa: E402
 from twin.pil.board import run_program_lap  # noqa: E402
+from twin.telemetry.wire import GAIN_ADDRESSES  # noqa: E402
 from twin.model.space import ChangeCost  # noqa: E402
 
 MAX_FIRMWARE_LAPS = 500  # laps on the emulated MCU, one after another: ~5 s each, under an hour
@@ -123,9 +124,6 @@ def check_size(axes: Sequence[Axis], seeds: int, firmware: bool = False, one_by_
                         "fewer points or seeds")
 
 
-GAINS = ("control.v_max", "control.kb", "control.kp", "control.ki", "control.kd")
-
-
 def check_program_axes(axes: Sequence[Axis]) -> None:
     """A 3pi program other than the twin's own firmware has its gains compiled in: ``control.*`` never reaches it."""
     for a in axes:
@@ -138,9 +136,9 @@ def check_controller_axes(axes: Sequence[Axis], placed: Sequence[str] = ()) -> N
     """A controller FMU has its own law: the firmware's gains never reach it; a multi-model's sensors stand where it
     puts them (``placed``: the addresses its stand-in file sets)."""
     for a in axes:
-        if a.address in GAINS:
+        if a.address in GAIN_ADDRESSES:
             raise TwinError(f"sweep {a.address}: the controller FMU drives with its own law (the firmware's gains "
-                            f"{', '.join(GAINS)} never reach it); sweep a parameter of the robot or its world")
+                            f"{', '.join(GAIN_ADDRESSES)} never reach it); sweep a parameter of the robot or its world")
         if a.address in placed:
             raise TwinError(f"sweep {a.address}: the --stand-in file places the sensors where the multi-model puts "
                             "them; change the multi-model's sensor parameters instead")

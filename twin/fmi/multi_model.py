@@ -27,9 +27,10 @@ from __future__ import annotations
 
 import dataclasses
 import glob
+import functools
 import json
-import os
 import math
+import os
 import re
 
 import numpy as np
@@ -139,17 +140,18 @@ def coe_step(mm: str, coe: str | None = None) -> tuple[float | None, str | None]
             docs[path] = _read_json(path, "--multi-model")
         except TwinError:
             docs[path] = {}  # an unreadable run record is passed over, and named in the note
+    steps = {f: _fixed_step(docs[f]) for f in found}
     ranked = sorted(found, key=lambda f: (not _names_it(docs[f], mm), f.count(os.sep), f))
-    usable = [f for f in ranked if _fixed_step(docs[f]) is not None]
+    usable = [f for f in ranked if steps[f] is not None]
     rel = lambda f: os.path.relpath(f, here)  # noqa: E731
-    others = ", ".join(f"{rel(f)} ({'step %g s' % _fixed_step(docs[f]) if _fixed_step(docs[f]) else 'no fixed step'})"
+    others = ", ".join(f"{rel(f)} ({'step %g s' % steps[f] if steps[f] else 'no fixed step'})"
                        for f in ranked if not usable or f != usable[0])
     if not usable:
         return None, f"no fixed step in (0, 1] s in its coe files ({others}); the controller runs at its own step"
-    why = "names this multi-model" if _names_it(docs[usable[0]], mm) else "found first"
-    return _fixed_step(docs[usable[0]]), (f"the co-simulation step {_fixed_step(docs[usable[0]]):g} s of "
-                                          f"{rel(usable[0])} ({why}; choose another with --coe)"
-                                          + (f"; also found: {others}" if others else ""))
+    chosen = usable[0]
+    why = "names this multi-model" if _names_it(docs[chosen], mm) else "found first"
+    return steps[chosen], (f"the co-simulation step {steps[chosen]:g} s of {rel(chosen)} ({why}; choose another with "
+                           "--coe)" + (f"; also found: {others}" if others else ""))
 
 
 @dataclasses.dataclass
@@ -219,13 +221,12 @@ def _place_array(mm: str, places: dict[str, tuple[float, float]]) -> tuple[dict,
     ahead = np.array([places[i][1] for i in order])
     shown = ", ".join(f"{i} ({places[i][0] * 1000:+.1f} mm left, {places[i][1] * 1000:.1f} mm ahead)" for i in order)
     spacing = -np.diff(left)
-    fits = (2 <= len(order) <= MAX_SENSORS and np.ptp(ahead) <= PLACE_TOLERANCE_M and abs(left.mean()) <= PLACE_TOLERANCE_M
-            and (spacing > 0).all() and np.ptp(spacing) <= PLACE_TOLERANCE_M)
+    fits = (2 <= len(order) <= MAX_SENSORS and np.ptp(ahead) <= PLACE_TOLERANCE_M
+            and abs(left.mean()) <= PLACE_TOLERANCE_M and (spacing > 0).all() and np.ptp(spacing) <= PLACE_TOLERANCE_M)
     if not fits:
         raise TwinError(f"--multi-model {mm}: cannot be stood in for: the twin's line array is a row of 2 to "
-                        f"{MAX_SENSORS} "
-                        "sensors, evenly spaced across the heading and centred on it, at one distance ahead "
-                        f"(within {PLACE_TOLERANCE_M * 1000:g} mm); its sensors are at: {shown}")
+                        f"{MAX_SENSORS} sensors, evenly spaced across the heading and centred on it, at one distance "
+                        f"ahead (within {PLACE_TOLERANCE_M * 1000:g} mm); its sensors are at: {shown}")
     values = dict(zip(PLACED, (len(order), float(spacing.mean()), float(ahead.mean()))))
     return values, {instance: k + 1 for k, instance in enumerate(order)}
 
@@ -241,19 +242,28 @@ def _parameter_value(mm: str, fmus: dict, instance: str, name: str, settings: di
     if file is None:
         raise TwinError(f"--multi-model {mm}: {instance}.{name} places a sensor, but the multi-model does not set it "
                         f"and its FMU {fmus[instance.split('.')[0]]} is not found to read its start value")
+    try:
+        starts = _start_values(file)
+    except ValueError as e:  # the archive or its XML
+        raise TwinError(f"--multi-model {mm}: {file}: its modelDescription.xml cannot be read ({e})") from None
+    try:
+        return float(starts[name])
+    except (KeyError, TypeError, ValueError):  # no such variable, no start value, or not a number
+        raise TwinError(f"--multi-model {mm}: {instance}.{name} places a sensor, but the multi-model does not set it "
+                        f"and {os.path.basename(file)} has no such variable with a numeric start value") from None
+
+
+@functools.lru_cache(maxsize=16)
+def _start_values(file: str) -> dict[str, str | None]:
+    """{variable: its start value} of an FMU's modelDescription, read once per file (the sensors' places read
+    several); ValueError if it cannot be read."""
     from fmpy import read_model_description
 
     try:
         md = read_model_description(file, validate=False)
     except Exception as e:  # fmpy raises plain exceptions for broken archives and XML
-        raise TwinError(f"--multi-model {mm}: {file}: its modelDescription.xml cannot be read "
-                        f"({' '.join(str(e).split())[:160]})") from None
-    v = next((v for v in md.modelVariables if v.name == name), None)
-    try:
-        return float(v.start)
-    except (AttributeError, TypeError, ValueError):
-        raise TwinError(f"--multi-model {mm}: {instance}.{name} places a sensor, but the multi-model does not set it "
-                        f"and {os.path.basename(file)} has no such variable with a numeric start value") from None
+        raise ValueError(" ".join(str(e).split())[:160]) from None
+    return {v.name: v.start for v in md.modelVariables}
 
 
 def _json_text(value) -> str:
@@ -337,7 +347,7 @@ def read_multi_model(mm: str, stand_in: str, coe: str | None = None) -> MultiMod
                 link = r.links[name]
                 port = link.port + (f"[{index[instance]}]" if instance in index and SENSOR_PORT.fullmatch(link.port)
                                     else "")
-                mapping[theirs] = Link(theirs, port, link.scale, link.offset, link.scaled, r.at_start.get(name))
+                mapping[theirs] = dataclasses.replace(link, variable=theirs, port=port, at_start=r.at_start.get(name))
     given = {}
     for (instance, name), value in settings.items():
         if instance == controller:
