@@ -91,7 +91,8 @@ def test_a_hung_controller_ends_at_once_on_ctrl_c_or_sigterm(places, signum, cod
         p.kill()
     assert p.returncode == code, err
     assert "Traceback" not in err and "error:" not in err, err
-    assert took < 2.0, f"it took {took:.1f} s to end"
+    # waiting out the hang would take the rest of STEP_LIMIT_S (4-5 s); 3 s leaves a loaded machine room
+    assert took < STEP_LIMIT_S - 2.0, f"it took {took:.1f} s to end"
     time.sleep(0.2)
     assert not any(os.path.exists(f"/proc/{h}") and open(f"/proc/{h}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
                    for h in hosts), "the controller's process outlived the twin"

@@ -346,7 +346,8 @@ def test_a_robot_in_lockstep_waits_on_while_the_twin_gives_signs_of_life():
     t0 = time.monotonic()
     with pytest.raises(NoReader, match="no sign of life from the twin for 0.3 s"):
         port.await_command(answers.append)
-    assert 0.5 + 0.3 <= time.monotonic() - t0 < 0.5 + 0.3 + 0.5
+    # the last sign of life at 0.5 s, the limit 0.3 s after it; the upper bound leaves a loaded machine 3 s of room
+    assert 0.5 + 0.3 <= time.monotonic() - t0 < 0.5 + 0.3 + 3.0
 
 
 @pytest.mark.quick

@@ -313,3 +313,23 @@ def test_an_mcu_attached_before_the_physics_stepped_reads_a_dark_floor(pil_ready
         assert mcu.run_cycles(2_000_000) == 0  # 0.1 s: about 20 reads
         raw = np.frombuffer(mcu.peek("fw_raw_us", 2 * lap.params.count), dtype="<u2")
         assert (raw >= int(lap.sensor.timeout_us) - 2).all(), raw  # timed out: no light came back
+
+
+def test_the_first_control_step_reads_the_robot_on_the_start_line(pil_ready):
+    """After the calibration turn the robot is put back on the start line while the MCU may be inside a tick that
+    read its sensors at the turn's last pose: button B is held from the lap's first tick on, so that stale tick
+    stays idle. The reference is the C loop's first tick from the same start (its error e and its ω = K_P e + ...,
+    the noise's draw aside: within 0.01 rad). Before the fix, on 2 of these 6 seeds the first step read the turn's
+    pose (e 0.23-0.44 rad) and kicked the robot at up to 27 rad/s (K_P 60, as ``tune`` answers on the circle)."""
+    from twin.core.digital_twin import DigitalTwin
+    from twin.pil.lap import run_pil_lap
+
+    twin = DigitalTwin(track="circle")
+    twin.update({"control.v_max": 1.2, "control.kb": 0.18, "control.kp": 60.0, "control.ki": 18.5, "control.kd": 0.16})
+    seeds = list(range(6))
+    for seed, c_lap in zip(seeds, run_laps(twin, [{}] * len(seeds), seed=seeds)):
+        pil_lap, _ = run_pil_lap(twin, seed=seed)
+        first = int(np.argmax(pil_lap.trace.column("mode") == RUN))
+        e_pil, e_c = pil_lap.trace.column("e_rad")[first], c_lap.trace.column("e_rad")[0]
+        assert abs(e_pil - e_c) <= 0.01, (seed, e_pil, e_c)
+        assert abs(pil_lap.trace.column("omega_radps")[first] - c_lap.trace.column("omega_radps")[0]) <= 1.0, seed

@@ -102,6 +102,7 @@ def test_an_unbounded_sweep_is_refused_at_once(axes, capsys, tmp_path):
     ten million were refused after 24 s."""
     t0 = time.monotonic()
     assert main(["sweep", *axes, "--out-dir", str(tmp_path / "s")]) == 2
-    assert time.monotonic() - t0 < 1.0
+    # counting is instant; 10 s (not 1 s) leaves a loaded 2-core machine room and still tells it from the 24 s before
+    assert time.monotonic() - t0 < 10.0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: sweep: ") and "more than the 20,000" in err[0], err

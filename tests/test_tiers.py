@@ -191,3 +191,33 @@ def test_the_checks_would_catch_a_gap():
     assert quick_marked(here, "test_the_checks_would_catch_a_gap")  # (by the module's mark)
     assert not quick_marked(os.path.join(TESTS, "test_case2.py"), "test_diagnosis_ranks_a_tired_battery_first_from_the_lap_time")
     assert reaches({"twin.cli.tune"}, "tuner") and not reaches({"twin.cli.tune"}, "tuner.live")
+
+
+def test_under_ci_a_skip_fails_unless_ci_allows_it(tmp_path):
+    """conftest.py's rule, run on a throwaway suite beside a copy of it: under CI a skip (in the test or by a mark)
+    fails with its reason; an opt-in skip CI allows and an expected failure stay as they are; outside CI all skip."""
+    import shutil
+    import subprocess
+    import sys
+
+    shutil.copy(os.path.join(TESTS, "conftest.py"), tmp_path)
+    (tmp_path / "test_throwaway.py").write_text(
+        "import pytest\n"
+        "def test_missing(): pytest.skip('needs the frobnicator')\n"
+        "@pytest.mark.skipif(True, reason='no compiler')\n"
+        "def test_marked(): pass\n"
+        "def test_opt_in(): pytest.skip('LIBPOLOLU_AVR is not set')\n"
+        "@pytest.mark.xfail(reason='known')\n"
+        "def test_known(): assert False\n")
+
+    def outcomes(ci: bool) -> str:
+        env = {k: v for k, v in os.environ.items() if k != "CI"} | ({"CI": "1"} if ci else {})
+        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rA", "-p", "no:cacheprovider", str(tmp_path)],
+                           capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+        return r.stdout
+
+    under_ci = outcomes(True)
+    assert "FAILED test_throwaway.py::test_missing - skipped under CI" in under_ci and "needs the frobnicator" in under_ci
+    assert "ERROR test_throwaway.py::test_marked - skipped under CI" in under_ci and "no compiler" in under_ci
+    assert "1 skipped, 1 xfailed" in under_ci, under_ci
+    assert "3 skipped, 1 xfailed" in outcomes(False)

@@ -130,11 +130,10 @@ def run_pil_lap(twin: DigitalTwin, elf_path: str | None = None, seed: int = 0, l
             sim = place_robot(model, data, twin, lap, seed)  # put back on the start line: MuJoCo's time 0
             sim.rng = core.lib.lf_noise_base(sim.seed, RUN)  # the lap's readings draw the noise the C loop's do
             mcu.attach(model, data, sim, stall_limit_s(params.dt_s))
-            mcu.zero_time_at_tick(params.dt_s)  # the lap begins with a tick, as the C loop's does
+            mcu.zero_time_at_tick(params.dt_s, BUTTON_B)  # the lap begins with a tick, as the C loop's does
             mcu.reset_stats()
             overruns_before = int.from_bytes(mcu.peek("fw_overruns", 2), "little")  # the turn's ten-read ticks overrun
             telemetry.offset = 0.0
-            mcu.buttons(BUTTON_B)
             _drive(mcu, data, sim, judge, telemetry, steps)
         status = mcu.status()
         overruns = (int.from_bytes(mcu.peek("fw_overruns", 2), "little") - overruns_before) % 65536

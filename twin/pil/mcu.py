@@ -67,7 +67,7 @@ def glue() -> ctypes.CDLL:
     lib.lf_avr_run_cycles.restype = c_int32
     lib.lf_avr_attach.argtypes = [c_void_p, c_void_p, c_void_p, c_void_p, c_double]
     lib.lf_avr_zero_time.argtypes = lib.lf_avr_reset_stats.argtypes = [c_void_p]
-    lib.lf_avr_zero_time_at_tick.argtypes = [c_void_p, c_double]
+    lib.lf_avr_zero_time_at_tick.argtypes = [c_void_p, c_double, c_int32]
     lib.lf_avr_buttons.argtypes = [c_void_p, c_int32]
     lib.lf_avr_state.argtypes = [c_void_p, p(core.FwState)]
     lib.lf_avr_state.restype = c_int32
@@ -161,9 +161,10 @@ class Mcu:
     def zero_time(self) -> None:
         self.lib.lf_avr_zero_time(self.handle)
 
-    def zero_time_at_tick(self, period_s: float) -> None:
-        """MuJoCo's time 0 at the twin firmware's next control tick (every ``period_s``), not now."""
-        self.lib.lf_avr_zero_time_at_tick(self.handle, period_s)
+    def zero_time_at_tick(self, period_s: float, pressed: int = 0) -> None:
+        """MuJoCo's time 0 at the twin firmware's next control tick (every ``period_s``), not now; the buttons in
+        ``pressed`` (A 1, B 2, C 4) held from time 0 on, so no tick under way now sees them."""
+        self.lib.lf_avr_zero_time_at_tick(self.handle, period_s, int(pressed))
 
     def reset_stats(self) -> None:
         self.lib.lf_avr_reset_stats(self.handle)

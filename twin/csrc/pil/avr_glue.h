@@ -199,6 +199,7 @@ typedef struct lf_avr {
   sensor_ref refs[LF_BOARD_MAX_SENSORS];
   uint8_t ddr_seen[3];
   uint64_t zero_cycle;                       /* MCU cycle at MuJoCo time 0 */
+  int32_t press_at_zero, press_pending;      /* buttons held from time 0 on (lf_avr_zero_time_at_tick) */
   uint64_t released[LF_BOARD_MAX_SENSORS];   /* cycle of each line's last release */
   int64_t reads[LF_BOARD_MAX_SENSORS];       /* each line's releases since attach: its reading's index (its noise) */
   uint64_t pwm_written;                      /* cycle of the last motor compare write */
@@ -273,7 +274,8 @@ int32_t lf_avr_run_until_clear(lf_avr *a, uint32_t addr, uint64_t max_cycles);
 void lf_avr_buttons(lf_avr *a, int32_t pressed);
 void lf_avr_attach(lf_avr *a, const mjModel *m, mjData *d, lf_sim *s, double stall_s);
 void lf_avr_zero_time(lf_avr *a);
-void lf_avr_zero_time_at_tick(lf_avr *a, double period_s); /* time 0 at the twin firmware's next control tick */
+/* time 0 at the twin firmware's next control tick, the buttons in `pressed` held from then on */
+void lf_avr_zero_time_at_tick(lf_avr *a, double period_s, int32_t pressed);
 int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep);
 const char *lf_avr_message(const lf_avr *a);
 int32_t lf_avr_state(const lf_avr *a, lf_state *out);

@@ -33,12 +33,16 @@ void lf_avr_zero_time(lf_avr *a) { a->zero_cycle = a->avr->cycle; }
 
 /* MuJoCo's time 0 is the twin firmware's next control tick (its Timer1 compare comes every period_s), so that its lap
  * begins with a tick as the C loop's does; until then the MCU runs with the physics held at time 0. Without a tick
- * seen yet, time 0 is now. */
-void lf_avr_zero_time_at_tick(lf_avr *a, double period_s) {
+ * seen yet, time 0 is now. The buttons in `pressed` are held from time 0 on, not now: a tick already under way
+ * read its sensors before the robot was put on the start line, and seeing the start button at its end it would run
+ * its first control step on those stale readings (a kick of K_P times the old pose's error, 27 rad/s on the circle
+ * with tuned gains). */
+void lf_avr_zero_time_at_tick(lf_avr *a, double period_s, int32_t pressed) {
   uint64_t now = a->avr->cycle, period = cycles_of(a, period_s);
   a->zero_cycle = now;
   if (a->timing_tick && period && now > a->timing_tick)
     a->zero_cycle = a->timing_tick + period * ((now - a->timing_tick + period - 1) / period);
+  a->press_at_zero = pressed, a->press_pending = 1;
 }
 
 static int stalled(lf_avr *a, const char *why) {
@@ -97,7 +101,9 @@ int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep) {
     from = a->avr->cycle;
     while (a->avr->cycle < end) {
       uint64_t c0 = a->avr->cycle;
-      int awake = a->avr->state == cpu_Running;
+      int awake;
+      if (a->press_pending && c0 >= a->zero_cycle) lf_avr_buttons(a, a->press_at_zero), a->press_pending = 0;
+      awake = a->avr->state == cpu_Running;
       int state = avr_run(a->avr);
       if (awake) a->busy += a->avr->cycle - c0;
       if (state == cpu_Done || state == cpu_Crashed) {
