@@ -12,8 +12,8 @@ class RobotConfig:
     Attributes:
       wheel_joints: (left, right) continuous joints of the drive wheels. Auto: the two continuous
         joints, told apart by their side of the root link (REP-103: +y is left).
-      caster: link or collision name of the caster(s), made frictionless. Auto: links or collisions
-        whose name contains "caster".
+      caster: link or collision name of the caster(s), given their own rolling resistance (mjcf.world). Auto:
+        links or collisions whose name contains "caster".
       sensor_link: link the line-sensor array is mounted on (its origin is the array's centre).
         Auto: a link whose name contains "sensor", else the root link.
       sensor_mount: (link, (x, y, z)): the array's centre in that link's frame [m]; overrides ``sensor_link``.

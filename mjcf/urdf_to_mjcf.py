@@ -15,8 +15,8 @@ so the URDF is read with yourdfpy (:mod:`mjcf.urdf_parse`) and each link becomes
 * an ``<inertial>`` is kept exactly (tensor rotated into the body frame); a link without one gets its mass and
   inertia from its URDF geometry at ``DEFAULT_DENSITY`` (computed by MuJoCo before any contact shape is changed,
   and then fixed), and the converter says so;
-* the drive wheels' tyres are marked for tyre friction, the caster made frictionless; the line array's place is
-  :mod:`mjcf.urdf_sensor_mount`'s.
+* the drive wheels' tyres are marked for tyre friction, the caster given contact priority (its rolling resistance:
+  :mod:`mjcf.world`); the line array's place is :mod:`mjcf.urdf_sensor_mount`'s.
 """
 
 from __future__ import annotations
@@ -273,8 +273,8 @@ def convert(
         notes=tuple(tree.notes),
     )
     for g in info.caster_geoms:
-        # a ball caster rolls: no tangential friction. MuJoCo takes the larger condim of two geoms unless
-        # one has priority, so the caster needs priority for its condim=1 to govern.
+        # a ball caster rolls: no tangential friction here (mjcf.world gives it its rolling resistance). MuJoCo
+        # takes the larger condim and friction of two geoms unless one has priority, so the caster has priority.
         spec.geom(g).condim = 1
         spec.geom(g).priority = 1
     return spec, info

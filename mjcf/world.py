@@ -38,6 +38,18 @@ AXLE_SITE = "axle_centre"
 SENSOR_SITE = "sensor_array"
 LINE_SENSOR = "line_sensor_{}"  # site of reflectance sensor i (0 = leftmost); its z axis points at the floor
 TYRE_SOLREF = (0.005, 1.0)  # [s, -] contact time constant and damping ratio; needs timestep <= 2.5 ms
+# A ball caster's rolling resistance as a coefficient of its normal load (-): the ball rolls on the floor and slides
+# in its socket, where friction mu_s at the ball's radius needs a force mu_s N at the floor (the same lever arm), so
+# the coefficient is the socket's sliding friction. The 3pi's caster is a 1/2" plastic ball in a plastic socket
+# (Pololu item 957); Pololu publishes no figure for it. The value is the low end of the published range for slide
+# bearings, 0.08-0.1 (NORD Drivesystems' rolling-resistance calculator, "coefficient of friction for support
+# bearings"; the rolling lever arm of a polymer ball on a hard floor, 0.08 mm over its 6.35 mm radius, adds 0.013,
+# inside that range). A caster with a ball in bearings (a ball-transfer unit) is nearer 0.005.
+CASTER_MU = 0.08
+# The default robot's casters still roll freely: with CASTER_MU the calibration turn, planned for wheels at
+# control.cal_duty of full speed, falls short at a 4.8 V battery (the robust envelope's corner), so the caster waits
+# for a turn planned with it (issue 33). `--set motion.caster_mu=0.08` gives it.
+CASTER_MU_DEFAULT = 0.0
 START_KEY = "start"
 
 
@@ -48,7 +60,9 @@ class PhysicsOptions:
     Attributes:
       timestep: physics step in [s].
       tyre_mu: tyre–floor sliding friction μ [-] (``motion.mu``).
-      floor_mu: the floor's own friction [-]; governs only contacts without a tyre.
+      floor_mu: the floor's own friction [-]; governs only contacts without a tyre or a caster.
+      caster_mu: the ball casters' rolling resistance per unit of their normal load [-] (``motion.caster_mu``): a
+        Coulomb force at the caster's contact against its motion in any direction (CASTER_MU).
       supply_voltage: battery voltage in [V]; the motor voltage control is clamped to ±this.
       impratio: frictional-to-normal impedance ratio; >1 reduces MuJoCo's soft-contact creep.
     """
@@ -56,11 +70,12 @@ class PhysicsOptions:
     timestep: float = 0.001
     tyre_mu: float = 0.9
     floor_mu: float = 0.6
+    caster_mu: float = CASTER_MU_DEFAULT
     supply_voltage: float = 6.0
     impratio: float = 10.0
 
     def __post_init__(self) -> None:
-        check_positive_fields(self, "physics")
+        check_positive_fields(self, "physics", may_be_zero=("caster_mu",))
         if self.timestep > TYRE_SOLREF[0] / 2:
             raise MjcfError(f"physics.timestep: {self.timestep:g} s is too coarse for the tyre contacts (max {TYRE_SOLREF[0] / 2:g} s)")
 
@@ -143,6 +158,10 @@ def build_world(
         if geom.type == mujoco.mjtGeom.mjGEOM_CYLINDER:  # crowned tyre: see the module docstring
             geom.type = mujoco.mjtGeom.mjGEOM_ELLIPSOID
             geom.size = [geom.size[0], geom.size[0], geom.size[1]]
+    for g in info.caster_geoms:  # priority (set by convert): its own friction governs, whatever the floor's; condim 3
+        geom = spec.geom(g)  # even at 0, so that motion.caster_mu can change in the compiled model
+        geom.condim = 3
+        geom.friction = [physics.caster_mu, 0.0, 0.0]
     for name, joint, direction in zip(MOTORS, info.wheel_joints, info.wheel_directions):
         add_gearmotor(spec, name, joint, motor, direction=direction, max_voltage=physics.supply_voltage)
     model = _compile(spec, urdf_path)

@@ -4,7 +4,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjcf.world import AXLE_SITE, MOTORS
+from mjcf.world import AXLE_SITE, CASTER_MU, MOTORS
 from twin.core.digital_twin import DigitalTwin
 
 pytestmark = pytest.mark.quick  # the whole module is in the quick tier (tests/test_tiers.py)
@@ -42,15 +42,20 @@ def run(twin, voltages, seconds, after):
     return np.array(rows)
 
 
+@pytest.mark.parametrize("caster_mu", [0.0, CASTER_MU])  # the default free caster, and a plastic ball's resistance
 @pytest.mark.parametrize("mu", [0.9, 1.5])  # the product's default grip, and a grippy tyre
 @pytest.mark.parametrize("voltages", [(3.0, 3.0), (2.0, 4.0), (4.0, 1.5), (-2.0, 2.0)])
-def test_eqs_1_to_3_hold_without_slip_within_2_percent(twin, voltages, mu):
+def test_eqs_1_to_3_hold_without_slip_within_2_percent(twin, voltages, mu, caster_mu):
     twin.set("motion.mu", mu)
+    twin.set("motion.caster_mu", caster_mu)
     rows = run(twin, voltages, seconds=2.0, after=1.0)
     v, v_eq, w, w_eq, v_side = rows.T
     assert np.max(np.abs(v_side)) <= 0.02 * max(np.abs(v_eq).max(), 0.05)  # Eq. 3: no sideways motion
     scale_v = max(np.abs(v_eq).max(), 1e-3)
-    assert np.max(np.abs(v - v_eq)) <= 0.02 * max(np.abs(v_eq).max(), 0.02 * 0.5) + 1e-4
+    # within 2 % of the wheels' rim speed (a spin in place has v_eq near 0): the tyres creep under the caster's
+    # rolling resistance in MuJoCo's soft contacts: 1.1-1.5 % at CASTER_MU, 0.1 % with a free caster
+    rim = max(np.abs(v_eq).max(), twin.info.half_track * np.abs(w_eq).max())
+    assert np.max(np.abs(v - v_eq)) <= 0.02 * rim
     if abs(voltages[0] - voltages[1]) > 0:
         assert np.max(np.abs(w - w_eq)) <= 0.02 * np.abs(w_eq).max()
     else:
@@ -81,3 +86,57 @@ def test_tyre_friction_governs_not_the_floor(twin):
         assert slip_after_step(twin, 0.05) > 0.1
     finally:
         twin.set("motion.floor_mu", 0.6)
+
+
+@pytest.mark.parametrize("caster_mu", [CASTER_MU / 2, CASTER_MU])
+def test_a_coast_down_slows_at_the_casters_rolling_resistance(caster_mu):
+    """The robot rolling at 0.5 m/s with its motors cut (no torque, no friction of their own) slows only by its
+    ball caster's rolling resistance F = mu_c N_c (mjcf.world.CASTER_MU), at a constant rate from the closed form of
+    the robot's balance: horizontally m_eff a = mu_c N_c, with m_eff = m + sum(I_wheel + J_rotor G^2)/R^2; the
+    moments about the wheels' contact line, m g d - x_c N_c = -a (m h + 2 I_wheel / R) (the centre of mass d ahead of
+    the axle and h above the floor, the caster's contact x_c ahead). So a = mu_c m g d / (x_c m_eff - mu_c (m h +
+    2 I_wheel / R)). Masses and places from the model; within 1 % (MuJoCo's soft contacts: measured 0.06 %)."""
+    twin = DigitalTwin(track="oval")
+    twin.set("motion.caster_mu", caster_mu)
+    model, info = twin.model(), twin.info
+    wheels = [model.joint(j).id for j in info.wheel_joints]
+    dofs = [model.jnt_dofadr[j] for j in wheels]
+    motors = [model.actuator(n).id for n in MOTORS]
+    model.actuator_gainprm[motors] = 0.0
+    model.actuator_biasprm[motors] = 0.0
+    model.actuator_damping[motors] = 0.0
+    model.dof_frictionloss[dofs] = 0.0
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("start").id)
+    mujoco.mj_forward(model, data)
+    root = model.body(info.root_body).id
+    R, v0, g = info.wheel_radius, 0.5, 9.81
+    heading = data.xmat[root].reshape(3, 3)[:, 0]
+    data.qvel[:3] = v0 * heading
+    for d, s in zip(dofs, info.wheel_directions):
+        data.qvel[d] = s * v0 / R
+    # the closed form's inputs: masses, inertias and places from the model
+    m = float(model.body_subtreemass[root])
+    axle = data.site(AXLE_SITE).xpos
+    com = data.subtree_com[root] - axle
+    d = float(com @ heading)
+    h = float(data.subtree_com[root][2])
+    caster = data.geom(info.caster_geoms[0])
+    x_c = float((caster.xpos - axle) @ heading)
+    wheel_bodies = [model.jnt_bodyid[j] for j in wheels]
+    i_wheel = float(np.mean([model.body_inertia[b].max() for b in wheel_bodies]))  # about its axle (the largest)
+    motor = twin.motor()
+    j_reflected = motor.J_rotor * motor.gear ** 2
+    m_eff = m + 2 * (i_wheel + j_reflected) / R ** 2
+    expected = caster_mu * m * g * d / (x_c * m_eff - caster_mu * (m * h + 2 * i_wheel / R))
+    site = model.site(AXLE_SITE).id
+    vel, speeds = np.zeros(6), []
+    for _ in range(int(0.8 / model.opt.timestep)):
+        mujoco.mj_step(model, data)
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE, site, vel, 0)
+        speeds.append(vel[3:] @ heading)
+    t = np.arange(1, len(speeds) + 1) * model.opt.timestep
+    keep = t > 0.1  # past the contacts' settling
+    slope = -np.polyfit(t[keep], np.array(speeds)[keep], 1)[0]
+    assert slope == pytest.approx(expected, rel=0.01), (slope, expected, d, h, x_c, m, m_eff)
+    assert np.array(speeds)[-1] > 0.1  # still rolling: the rate was measured in motion

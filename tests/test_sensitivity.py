@@ -319,7 +319,7 @@ def test_align_falls_back_on_its_own_laps_over_the_physical_range(tmp_path, monk
 def test_controlled_twin_case_lap_time_is_governed_by_the_top_speed():
     """Every lap completes and only the top speed, the floor's own friction and the derivative gain vary, in
     narrow ranges: on a circle at ±8 % top speed the lap time is L / v plus a start-up, so its variance is the top
-    speed's (ST → 1); the floor's friction meets neither tyre nor (frictionless) caster and K_D ±10 % hardly steers a
+    speed's (ST → 1); the floor's friction meets neither tyre nor caster (each has its own) and K_D ±10 % hardly steers a
     robot that already follows a constant curvature."""
     twin = DigitalTwin(track="circle")
     factors = chosen_factors(twin.space, ["control.v_max", "motion.floor_mu", "control.kd"],

@@ -38,8 +38,8 @@ class PhysicalRange:
 PHYSICAL_RANGES: dict[str, PhysicalRange] = {
     "motion.mu": PhysicalRange(1 / 3, 4 / 3, "clean rubber on a laminated board ≈ 0.9 (the model's nominal); dust or "
                                "worn tyres take it down to a third, a sticky floor up a third"),
-    "motion.floor_mu": PhysicalRange(1 / 3, 4 / 3, "the floor's grip on what is not a tyre (casters, chassis): the "
-                                     "tyres' spread"),
+    "motion.floor_mu": PhysicalRange(1 / 3, 4 / 3, "the floor's grip on what is not a tyre or a caster (a chassis): "
+                                     "the tyres' spread"),
     "motor.supply_voltage": PhysicalRange(4.0 / 6.0, 6.2 / 6.0, "four AAA cells: 4 × 1.0 V at the end of a NiMH "
                                           "discharge (Panasonic HHR70AAAJ) to 4 × 1.55 V fresh alkaline (Pololu 3pi+ "
                                           "guide §5.7: 6 V nominal)"),
@@ -60,8 +60,9 @@ DISCRETE = {"control.dt": "the control period is a whole number of physics steps
 CANNOT = ("motion.timestep", "control.dt")
 # act on nothing in a lap: the tyres and the ball casters have contact priority (mjcf.world, mjcf.urdf_to_mjcf), so
 # the floor's own friction governs only a chassis touching the floor, which a lap never has
-INERT = {"motion.floor_mu": "acts on nothing in a lap: the tyres' μ (motion.mu) governs their contacts and the casters "
-                            "are frictionless; the floor's own friction only meets a chassis scraping the floor"}
+INERT = {"motion.floor_mu": "acts on nothing in a lap: the tyres' μ (motion.mu) and the casters' rolling resistance "
+                            "(motion.caster_mu) govern their contacts; the floor's own friction only meets a chassis "
+                            "scraping the floor"}
 SETTINGS = ("sensor.timeout",)  # besides control.*: the firmware's read timeout
 GAINS = ("control.v_max", "control.kb", "control.kp", "control.ki", "control.kd")  # Eq. 13: varied by default
 

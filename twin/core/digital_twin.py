@@ -214,7 +214,7 @@ class DigitalTwin:
         nominal one PWM duty 1 gives (the regulator's, or the battery's: :attr:`Power.nominal_v`)."""
         v = self._values("motion", values)
         return PhysicsOptions(
-            timestep=v["timestep"], tyre_mu=v["mu"], floor_mu=v["floor_mu"],
+            timestep=v["timestep"], tyre_mu=v["mu"], floor_mu=v["floor_mu"], caster_mu=v["caster_mu"],
             supply_voltage=self.power(values).nominal_v, impratio=v["impratio"],
         )
 
@@ -370,6 +370,8 @@ def apply_fields(model: mujoco.MjModel, info: RobotInfo, motor: MotorConstants, 
     for g in info.tyre_geoms:
         model.geom(g).friction[0] = physics.tyre_mu
     model.geom(FLOOR).friction[0] = physics.floor_mu
+    for g in info.caster_geoms:
+        model.geom(g).friction[0] = physics.caster_mu
     model.opt.timestep = physics.timestep
     model.opt.impratio = physics.impratio
     ids = [model.actuator(n).id for n in MOTORS]

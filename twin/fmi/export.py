@@ -139,9 +139,12 @@ def export_fmu(twin: DigitalTwin, path: str, kind: str = CLOSED_LOOP, fmi_versio
     token = "{" + str(uuid.uuid5(TOKEN_NAMESPACE, digest)) + "}"
     identifier = IDENTIFIER[kind]
     ids = {"start_key": model.key(START_KEY).id, "floor_geom": model.geom(FLOOR).id,
-           "tyre_geoms": [model.geom(g).id for g in twin.info.tyre_geoms]}
+           "tyre_geoms": [model.geom(g).id for g in twin.info.tyre_geoms],
+           "caster_geoms": [model.geom(g).id for g in twin.info.caster_geoms]}
     if not 1 <= len(ids["tyre_geoms"]) <= 8:
         raise TwinError(f"fmu: the robot has {len(ids['tyre_geoms'])} tyre geoms; the FMU takes 1 to 8")
+    if len(ids["caster_geoms"]) > 8:
+        raise TwinError(f"fmu: the robot has {len(ids['caster_geoms'])} caster geoms; the FMU takes up to 8")
     xml = model_description(table, fmi_version, identifier, token, DESCRIPTION[kind], limits.timeout_s,
                             params.dt_s, dependency_free=kind == PLANT)
     with tempfile.TemporaryDirectory(prefix="twin-fmu-") as work:

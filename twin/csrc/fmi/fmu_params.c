@@ -106,6 +106,8 @@ int32_t lf_fmu_apply(lf_fmu *f, lf_sim *s) {
       for (i = 0; i < c->ntyre; i++) m->geom_friction[3 * c->tyre_geom[i]] = v;
     } else if (what == LF_P_MOTION_FLOOR_MU) {
       m->geom_friction[3 * c->floor_geom] = v;
+    } else if (what == LF_P_MOTION_CASTER_MU) {
+      for (i = 0; i < c->ncaster; i++) m->geom_friction[3 * c->caster_geom[i]] = v;
     } else if (what == LF_P_MOTION_TIMESTEP) {
       m->opt.timestep = v;
       s->timestep = v;

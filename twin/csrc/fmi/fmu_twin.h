@@ -28,6 +28,7 @@
 
 enum lf_fmu_kind { LF_FMU_PLANT = 1, LF_FMU_CLOSED_LOOP = 2 };
 #define LF_FMU_MAX_TYRES 8 /* tyre geoms whose friction is motion.mu */
+#define LF_FMU_MAX_CASTERS 8 /* caster geoms whose friction is motion.caster_mu */
 
 /* Where a variable's value lives (lf_fmu_var.source). */
 enum lf_fmu_source {
@@ -60,7 +61,7 @@ typedef struct {
 /* What a parameter changes: "LF_P_" and its model-space address in capitals (the exporter writes that name, so
  * an address this file does not know fails the export's compilation). */
 enum lf_fmu_param_what {
-  LF_P_MOTION_MU, LF_P_MOTION_FLOOR_MU, LF_P_MOTION_TIMESTEP, LF_P_MOTION_IMPRATIO,
+  LF_P_MOTION_MU, LF_P_MOTION_FLOOR_MU, LF_P_MOTION_CASTER_MU, LF_P_MOTION_TIMESTEP, LF_P_MOTION_IMPRATIO,
   LF_P_MOTOR_R_M, LF_P_MOTOR_L_M, LF_P_MOTOR_K, LF_P_MOTOR_B_M, LF_P_MOTOR_J_ROTOR, LF_P_MOTOR_GEAR,
   LF_P_MOTOR_EFFICIENCY, LF_P_MOTOR_FRICTION,
   LF_P_MOTOR_SUPPLY_VOLTAGE,
@@ -89,6 +90,7 @@ typedef struct {
   int32_t start_key;       /* keyframe of the start line */
   int32_t floor_geom;
   int32_t ntyre, tyre_geom[LF_FMU_MAX_TYRES];
+  int32_t ncaster, caster_geom[LF_FMU_MAX_CASTERS];
   double calibration_timeout_s, min_calibration_range_us;
   lf_lap_limits limits;    /* timeout_s is the lap_timeout parameter's start */
   uint64_t seed;           /* start value */
