@@ -35,9 +35,7 @@ from twin.telemetry.wire import Header, Reply, gains_to_wire
 # answer holds to about 0.67, and would move whenever the tuner does); the test asserts that premise (plain sees
 # failures)
 PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
-# the scenario was built on the robot with a free-rolling caster, where these gains fail below mu ~ 0.72; the caster's
-# rolling resistance (motion.caster_mu 0.08) moves that edge to ~ 0.62, so both the robot and its twin hold it at 0
-GAINS = [w for a, v in PLAIN.items() for w in ("--set", f"{a}={v}")] + ["--set", "motion.caster_mu=0"]
+GAINS = [w for a, v in PLAIN.items() for w in ("--set", f"{a}={v}")]
 DRIFT = "motion.mu=0.84:0.6@16"  # plain gains fail from about lap 7 on
 LAPS = 12
 
@@ -184,7 +182,6 @@ def test_a_change_the_robot_reports_in_force_before_its_first_lap_header_is_foll
     new = {**PLAIN, "control.v_max": 1.2}
     stand_in_retune.update(new)
     twin = DigitalTwin()
-    twin.set("motion.caster_mu", 0.0)  # (as GAINS: the scenario's robot)
     sent, actions = [], []
     actor = Actor(twin, "motion.mu", ActOptions(), 0, lambda line, deadline: sent.append(line), actions.append)
     actor.on_record(Header(8, 0.005, 2, "r7", 0), time.monotonic())

@@ -20,15 +20,11 @@ from twin.link.emulator import Drift
 # is built on where these gains fail, below μ ≈ 0.75, and a calibrated interval may miss one scenario in ten, so
 # the scenario must not move when the tuner does; the test asserts its premise (the first failure within the run)
 PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
-# the scenario was built on the robot with a free-rolling caster, where these gains fail below mu ~ 0.72; the
-# caster's rolling resistance (motion.caster_mu 0.08) moves that edge to ~ 0.62, so it is held at 0 here
-FREE_CASTER = 0.0
 LAPS, EVERY = 70, 5  # laps run; an alignment on laps k-1, k every EVERY laps
 
 
 def test_the_stated_interval_holds_the_hidden_drifts_first_failure():
     twin = DigitalTwin()
-    twin.set("motion.caster_mu", FREE_CASTER)
     twin.model()
     drift = Drift.parse("motion.mu=0.95:0.6@70:accelerating", twin)
     laps = run_laps(twin, [{**PLAIN, "motion.mu": drift.at(k)} for k in range(LAPS)], seed=[500 + k for k in range(LAPS)],
@@ -70,7 +66,6 @@ def test_read_lap_by_lap_the_stated_interval_holds_a_hidden_drifts_first_failure
     lap's time and line offset, no alignment at all: at a third and at two thirds of the life the stated 90 %
     interval holds the first failed lap; the same laps in another order give the same forecast bit for bit."""
     twin = DigitalTwin()
-    twin.set("motion.caster_mu", FREE_CASTER)
     twin.model()
     laps = _robot(twin, ["motion.mu=0.92:0.62@60"], 60, 700)
     first_failed = next((k for k, r in enumerate(laps) if not r["completed"]), None)
@@ -92,10 +87,6 @@ def test_two_causes_at_once_grip_alone_does_not_explain_and_the_battery_that_doe
     from tuner.history.report import causes_note, soonest
 
     twin = DigitalTwin()
-    twin.set("motion.caster_mu", FREE_CASTER)
-    # the scenario's robot plans its calibration turn for 1 rad, which falls short once its battery is low (a robot
-    # of the robust envelope's 4.8 V corner fails there: the default plan is 1.3 rad now): the failure it forecasts
-    twin.set("control.cal_sweep", 1.0)
     twin.model()
     laps = _robot(twin, ["motion.mu=0.9:0.7@40", "motor.supply_voltage=6.0:4.5@40"], 40, 800)
     first_failed = next((k for k, r in enumerate(laps) if not r["completed"]), None)

@@ -23,9 +23,6 @@ from twin.telemetry.wire import Boot, Event, Header, Reply, Sample, encode
 # held fixed on purpose, not the tuner's answer today (the plain_gains fixture): test_act's gains, which the twin
 # fails below μ ≈ 0.75, the premise of the forecast test's hand calculation; elsewhere only values in records
 PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
-# the scenario was built on the robot with a free-rolling caster, where these gains fail below mu ~ 0.72; the
-# caster's rolling resistance (motion.caster_mu 0.08) moves that edge to ~ 0.62, so it is held at 0 here
-FREE_CASTER = 0.0
 NEW = {"control.v_max": 1.1, "control.kb": 0.2, "control.kp": 31.0, "control.ki": 0.0, "control.kd": 1.12}  # arbitrary: a second set for the records
 
 
@@ -215,7 +212,6 @@ def test_the_forecast_filters_the_evidence_and_races_the_gains_on_the_twin():
     laps after lap 25: that lies inside the stated 90 % interval, and the median comes no later (a first failure
     comes before half the laps fail); the advice and the statement come from that distribution."""
     twin = DigitalTwin()
-    twin.set("motion.caster_mu", FREE_CASTER)
     twin.model()
     alignments = [{"first_lap": lap - 1, "lap": lap, "address": "motion.mu", "explained": True,
                    "value": 0.9 - 0.005 * (lap - 0.5), "interval": [0.9 - 0.005 * lap - 0.005, 0.9 - 0.005 * lap + 0.005]}

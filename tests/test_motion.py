@@ -42,7 +42,7 @@ def run(twin, voltages, seconds, after):
     return np.array(rows)
 
 
-@pytest.mark.parametrize("caster_mu", [CASTER_MU, 0.0])  # the default plastic ball's resistance, a free caster
+@pytest.mark.parametrize("caster_mu", [0.0, CASTER_MU])  # the default free caster, and a plastic ball's resistance
 @pytest.mark.parametrize("mu", [0.9, 1.5])  # the product's default grip, and a grippy tyre
 @pytest.mark.parametrize("voltages", [(3.0, 3.0), (2.0, 4.0), (4.0, 1.5), (-2.0, 2.0)])
 def test_eqs_1_to_3_hold_without_slip_within_2_percent(twin, voltages, mu, caster_mu):

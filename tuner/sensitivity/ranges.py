@@ -40,8 +40,6 @@ PHYSICAL_RANGES: dict[str, PhysicalRange] = {
                                "worn tyres take it down to a third, a sticky floor up a third"),
     "motion.floor_mu": PhysicalRange(1 / 3, 4 / 3, "the floor's grip on what is not a tyre or a caster (a chassis): "
                                      "the tyres' spread"),
-    "motion.caster_mu": PhysicalRange(0.5, 1.25, "0.08-0.1, the slide-bearing range the nominal 0.08 comes from "
-                                      "(NORD); down to half for a polished ball in a clean socket"),
     "motor.supply_voltage": PhysicalRange(4.0 / 6.0, 6.2 / 6.0, "four AAA cells: 4 × 1.0 V at the end of a NiMH "
                                           "discharge (Panasonic HHR70AAAJ) to 4 × 1.55 V fresh alkaline (Pololu 3pi+ "
                                           "guide §5.7: 6 V nominal)"),

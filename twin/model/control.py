@@ -187,11 +187,7 @@ DEFAULTS = {
     "dt": 0.005,           # [s] a 200 Hz loop: a QTR-RC read takes up to its 2.5 ms timeout
     "accel_max": 3.0,      # [m/s²] below the ≈ 9 m/s² grip limit at μ = 0.9: launches without wheelspin
     "integral_limit": 0.5, # [rad·s]
-    "cal_duty": 0.15,      # Pololu's example turns at 60/400 of full speed while calibrating (3pi+ 32U4)
-    # [rad] nominal sweep each way; the outer sensors need ≈ 0.7 rad at S = 40 mm. The turn is timed for wheels at
-    # cal_duty of full speed, and the motors' dead band and the caster's resistance take a share of the drive that
-    # grows as the battery falls: at 1.0 it fell short at 4.8 V (the robust envelope's corner) on every built-in
-    # track; 1.3 calibrates at 4.8 and 6 V and mu 0.2-0.9 on all of them (docs/models.md, "Casters")
-    "cal_sweep": 1.3,
+    "cal_duty": 0.15,      # Pololu's example turns at 40/400 of full speed while calibrating
+    "cal_sweep": 1.0,      # [rad] nominal sweep each way; the outer sensors need ≈ 0.7 rad at S = 40 mm
     "cal_sweeps": 2,
 }

@@ -88,7 +88,7 @@ def motion_model() -> PartialModel:
             Parameter("mu", "-", phys.tyre_mu, 0.05, 2.0, F, "tyre–floor friction coefficient", True),
             Parameter("floor_mu", "-", phys.floor_mu, 0.05, 2.0, F, "floor friction for contacts without a tyre or caster", True),
             Parameter("caster_mu", "-", phys.caster_mu, 0.0, 0.5, F, "ball casters' rolling resistance per unit "
-                      "normal load (mjcf.world.CASTER_MU 0.08: a plastic ball in its socket; 0: rolling freely)"),
+                      "normal load (0: rolling freely; mjcf.world.CASTER_MU 0.08: a plastic ball in its socket)"),
             # the tyre contact needs at least two steps per time constant (PhysicsOptions checks the same)
             Parameter("timestep", "s", phys.timestep, 1e-5, TYRE_SOLREF[0] / 2, F, "physics step", True),
             Parameter("impratio", "-", phys.impratio, 1.0, 100.0, F, "friction/normal impedance ratio", True),
