@@ -85,11 +85,12 @@ def _as_root() -> list[str] | None:
 
 
 class SmallDisks:
-    """Small tmpfs file systems under ``root``, mounted on first use (root only) and filled to leave a given
+    """Small tmpfs file systems under ``root``, mounted on first use (as root, or with sudo) and filled to leave a given
     room: ``{full}`` none, ``{free16k}`` 16 KB."""
 
     def __init__(self, root: str):
         self.root, self.mounted = root, {}
+        self.as_root: list[str] | None = None  # the mount command's prefix, found at the first mount (_as_root)
 
     def places(self, line: str) -> dict[str, str]:
         """The disks ``line`` names, mounted; skips the row where they cannot be."""
@@ -101,12 +102,13 @@ class SmallDisks:
     def _mount(self, name: str, free_kb: int) -> str:
         if name in self.mounted:
             return self.mounted[name]
-        as_root = _as_root()
-        if as_root is None:
+        if self.as_root is None:
+            self.as_root = _as_root()
+        if self.as_root is None:
             pytest.skip("a full file system needs root or passwordless sudo (a tmpfs mount)")
         path = os.path.join(self.root, name)
         os.makedirs(path, exist_ok=True)
-        r = subprocess.run([*as_root, "mount", "-t", "tmpfs", "-o", f"size={DISK_KB}k,mode=1777", "tmpfs", path],
+        r = subprocess.run([*self.as_root, "mount", "-t", "tmpfs", "-o", f"size={DISK_KB}k,mode=1777", "tmpfs", path],
                            capture_output=True, text=True)
         if r.returncode != 0:
             pytest.skip(f"cannot mount a tmpfs here: {r.stderr.strip()}")
@@ -118,7 +120,7 @@ class SmallDisks:
 
     def close(self) -> None:
         for path in self.mounted.values():
-            subprocess.run([*(_as_root() or []), "umount", "-l", path], capture_output=True)
+            subprocess.run([*(self.as_root or []), "umount", "-l", path], capture_output=True)
         self.mounted.clear()
 
 

@@ -101,10 +101,10 @@ int32_t lf_avr_lockstep(lf_avr *a, void *step1, void *step2, int64_t nstep) {
     from = a->avr->cycle;
     while (a->avr->cycle < end) {
       uint64_t c0 = a->avr->cycle;
-      int awake;
+      int awake, state;
       if (a->press_pending && c0 >= a->zero_cycle) lf_avr_buttons(a, a->press_at_zero), a->press_pending = 0;
       awake = a->avr->state == cpu_Running;
-      int state = avr_run(a->avr);
+      state = avr_run(a->avr);
       if (awake) a->busy += a->avr->cycle - c0;
       if (state == cpu_Done || state == cpu_Crashed) {
         ((step_fn)step2)(m, d);
