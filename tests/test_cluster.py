@@ -23,6 +23,10 @@ else:
 from tuner.studies.cluster import local_head, study_on_ray
 from tuner.studies.design import grid, study
 
+# one Ray head on the machine at a time ('ray stop --force' stops every one, 'auto' joins whichever): under
+# pytest -n 2 the tests that start one run in one process, one after another (bench_cluster's run too)
+pytestmark = pytest.mark.xdist_group("ray")
+
 RUN = [sys.executable, "-m", "twin.run"]
 DESIGNS = {"cad.S": (0.05, 0.07)}
 SMALL = ["--track", "oval", "--laps", "2", "--max-iter", "2"]
@@ -135,7 +139,12 @@ def test_a_killed_worker_is_retried_and_counted_once(head):
             (e.design, e.ok, e.gains, e.lap_times_s, e.mean_cross_track_m)
 
 
-def test_no_cluster_is_one_line_exit_2(tmp_path):
-    r = subprocess.run([*RUN, "design", *SMALL, "--cluster", "ray://127.0.0.1:1", "--out-dir", tmp_path / "d"],
+@pytest.mark.parametrize("address, why", [("ray://127.0.0.1:1", "no Ray cluster there"),
+                                          ("ray://127.0.0.1:port", "not a ray://HOST:PORT address"),
+                                          ("ray://:10001", "no host in it")])
+def test_no_cluster_is_one_line_exit_2(tmp_path, address, why):
+    """Nothing listens at port 1 (refused before Ray Client's own ~30 s of retries); the others are not addresses."""
+    r = subprocess.run([*RUN, "design", *SMALL, "--cluster", address, "--out-dir", tmp_path / "d"],
                        capture_output=True, text=True, timeout=180)
-    assert r.returncode == 2 and r.stderr.strip().splitlines()[-1].startswith("error: --cluster ray://127.0.0.1:1")
+    assert r.returncode == 2 and r.stderr.strip().startswith(f"error: --cluster {address}: {why}"), r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "d").exists()

@@ -210,14 +210,27 @@ def test_under_ci_a_skip_fails_unless_ci_allows_it(tmp_path):
         "@pytest.mark.xfail(reason='known')\n"
         "def test_known(): assert False\n")
 
-    def outcomes(ci: bool) -> str:
+    def outcomes(ci: bool, *flags: str) -> str:
         env = {k: v for k, v in os.environ.items() if k != "CI"} | ({"CI": "1"} if ci else {})
-        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rA", "-p", "no:cacheprovider", str(tmp_path)],
+        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rA", "-p", "no:cacheprovider", *flags, str(tmp_path)],
                            capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
         return r.stdout
 
-    under_ci = outcomes(True)
-    assert "FAILED test_throwaway.py::test_missing - skipped under CI" in under_ci and "needs the frobnicator" in under_ci
-    assert "ERROR test_throwaway.py::test_marked - skipped under CI" in under_ci and "no compiler" in under_ci
-    assert "1 skipped, 1 xfailed" in under_ci, under_ci
+    for flags in ((), ("-n", "2")):  # alone, and in the README's two processes (pytest-xdist sends the reports over)
+        under_ci = outcomes(True, *flags)
+        assert "FAILED test_throwaway.py::test_missing - skipped under CI" in under_ci and "frobnicator" in under_ci
+        assert "ERROR test_throwaway.py::test_marked - skipped under CI" in under_ci and "no compiler" in under_ci
+        assert "1 skipped, 1 xfailed" in under_ci, under_ci
     assert "3 skipped, 1 xfailed" in outcomes(False)
+
+
+def test_the_heavy_tests_run_first_by_name():
+    """conftest.HEAVY_FIRST (the order the two processes take the heaviest tests in) names tests that exist, so a
+    renamed test is not silently left to end the run."""
+    from conftest import HEAVY_FIRST
+
+    for entry in HEAVY_FIRST:
+        file, test = entry.removeprefix("tests/").split("::")
+        path = os.path.join(TESTS, file)
+        assert os.path.isfile(path), entry
+        assert test.split("[")[0] in {n.name for n in parsed(path).body if isinstance(n, ast.FunctionDef)}, entry

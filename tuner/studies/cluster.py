@@ -38,6 +38,8 @@ log = logging.getLogger(__name__)
 RETRIES = 3  # attempts after a worker dies, per design
 CONNECT_TIMEOUT_S = 60.0  # [s] to join the cluster
 CLIENT_ATTEMPTS = 3  # Ray Client sessions tried when the server fails to start one (a busy head)
+RAY_CLIENT_PORT = 10001  # Ray Client's default port (ray start --ray-client-server-port)
+REACH_TIMEOUT_S = 10.0  # [s] for the head to accept a TCP connection before Ray Client is tried
 POLL_S = 1.0  # [s] between progress checks
 
 
@@ -65,6 +67,8 @@ def connect(address: str):
         raise ClusterError(f"--cluster {address}: expected auto or ray://HOST:PORT")
     if ray.is_initialized():
         return ray
+    if address.startswith("ray://"):
+        _reachable(address)
     try:
         for attempt in range(CLIENT_ATTEMPTS):
             try:
@@ -85,6 +89,26 @@ def connect(address: str):
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ClusterError(f"--cluster {address}: no Ray cluster there ({first}); start one with 'ray start --head'") from None
     return ray
+
+
+def _reachable(address: str) -> None:
+    """Fail at once when nothing listens at a ``ray://HOST[:PORT]`` address: Ray Client itself retries a refused
+    connection for ~30 s (three attempts, 5 + 10 + 15 s) before it says so."""
+    import socket
+    import urllib.parse
+
+    try:
+        where = urllib.parse.urlsplit(address)
+        host, port = where.hostname, where.port or RAY_CLIENT_PORT
+    except ValueError as e:
+        raise ClusterError(f"--cluster {address}: not a ray://HOST:PORT address ({e})") from None
+    if not host:
+        raise ClusterError(f"--cluster {address}: no host in it, expected ray://HOST:PORT")
+    try:
+        socket.create_connection((host, port), timeout=REACH_TIMEOUT_S).close()
+    except OSError as e:
+        raise ClusterError(f"--cluster {address}: no Ray cluster there ({e.strerror or type(e).__name__}); start one "
+                           "with 'ray start --head'") from None
 
 
 def _sweep_task(point: dict, seeds: list[int], base: dict, version: str) -> list[LapResult]:
