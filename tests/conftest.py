@@ -42,8 +42,7 @@ def pytest_runtest_makereport(item, call):
         report.longrepr = f"skipped under CI, where every test must run: {reason}"
 
 
-# The suite runs in two processes (pytest -n 2 --dist loadgroup, pytest-xdist), each taking the next test when it is
-# free. The tests that took 18 s or more in a rehearsal of .ci/run (--durations) start first, heaviest first, so that
+# The suite runs in two processes (pytest -n 2, pytest-xdist), each taking the next test when it is free. The tests that took 18 s or more in a rehearsal of .ci/run (--durations) start first, heaviest first, so that
 # the run does not end on one of them while the other process idles. Only the order changes; a test missing here runs in its place.
 HEAVY_FIRST = tuple(f"tests/{name}" for name in (
     "test_case2.py::test_lap_time_and_diagnosis_intervals_cover_hidden_values_across_the_documented_ranges",
@@ -85,6 +84,22 @@ def pytest_collection_modifyitems(config, items):
     def rank(item) -> int:  # heaviest first, in the order listed; the rest (stable sort) as collected
         return next((k for k, name in enumerate(HEAVY_FIRST) if item.nodeid.startswith(name)), len(HEAVY_FIRST))
     items.sort(key=rank)
+
+
+@pytest.fixture
+def one_ray_head(tmp_path_factory):
+    """The machine's Ray lock, held for the test: a test that starts a Ray head waits for the other pytest process's
+    (pytest -n 2) to finish, since 'ray stop --force' stops every head on the machine and 'auto' joins whichever is
+    there. (pytest-xdist's own xdist_group does not group under pytest 9: tried with xdist 3.8.) Function-scoped:
+    a lock held across tests could wait on a process that waits for it."""
+    import fcntl
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # each process's base folder sits in the run's own
+        root = root.parent
+    with open(root / "ray.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -89,13 +89,11 @@ PARTIAL = {"--robust-only"}  # flags after which a script prints a part of its r
 RUNS = sorted(set(cited_commands()) | {(s,) for s in SCRIPTS if all(c[0] != s for c in cited_commands())})
 
 
-RAY = pytest.mark.xdist_group("ray")  # bench_cluster starts a Ray head: one at a time on the machine (test_cluster.py)
-
-
-@pytest.mark.parametrize("argv", [pytest.param(r, marks=RAY if r[0] == "bench_cluster.py" else ())
-                                  for r in RUNS], ids=[" ".join(r) for r in RUNS])
-def test_benchmark_runs_in_quick_mode_and_prints_its_figures(argv, tmp_path):
+@pytest.mark.parametrize("argv", RUNS, ids=[" ".join(r) for r in RUNS])
+def test_benchmark_runs_in_quick_mode_and_prints_its_figures(argv, tmp_path, request):
     script, *flags = argv
+    if script == "bench_cluster.py":  # it starts a Ray head: one at a time on the machine (conftest.one_ray_head)
+        request.getfixturevalue("one_ray_head")
     try:
         run = subprocess.run([sys.executable, os.path.join(BENCH, script), *flags, "--quick"], cwd=tmp_path,
                              capture_output=True, text=True, timeout=LIMIT_S)

@@ -121,6 +121,17 @@ def test_pwm_duty_reaches_the_motor_model_wheel_speed(build, duty):
     assert np.mean(tr.column("u_left_v")[window]) == pytest.approx(duty / 256 * 9.25, rel=1e-6)
 
 
+def test_a_program_driving_the_line_backwards_is_judged_wrong_way_as_soon_as_it_is_25_cm_back(build):
+    """Both motors at duty -96 from the start line: the robot follows the oval's straight backwards. The judge ends
+    the lap as wrong_way (LapLimits.max_backtrack_m, 25 cm) instead of at the 30 s timeout: after 0.25 m at the
+    motors' no-load wheel speed for that voltage (the spin-up adds a little), not before."""
+    lap, report = run(build("drive", LEFT=-96, RIGHT=-96), timeout_s=30.0)
+    assert lap.failure == "wrong_way" and "25 cm behind" in lap.detail, (lap.failure, lap.detail)
+    twin = three_pi()
+    speed = abs(twin.motor().no_load_speed_wheel(-96 / 256 * twin.power().nominal_v)) * twin.space.get("cad.R")
+    assert 1.0 <= lap.simulated_s / (LapLimits().max_backtrack_m / speed) <= 1.25, (lap.simulated_s, speed)
+
+
 def test_the_default_operator_presses_the_button_the_lcd_asks_for(build):
     lap, report = run(build("buttons"))
     assert [p.button for p in report.presses] == ["A", "C"]

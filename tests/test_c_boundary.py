@@ -115,7 +115,7 @@ def test_a_status_code_on_one_side_only_fails_the_import_check():
 
 def test_lap_outcomes_are_the_strings_results_carry():
     assert [o.value for o in Outcome] == ["completed", "off_track", "line_lost", "timeout", "diverged", "calibration",
-                                          "refused", "firmware_stalled", "power", "stopped"]
+                                          "refused", "wrong_way", "firmware_stalled", "power", "stopped"]
     assert all(type(o.value) is str for o in Outcome)  # LapResult.failure holds these, never the members
 
 

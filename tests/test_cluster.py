@@ -23,9 +23,9 @@ else:
 from tuner.studies.cluster import local_head, study_on_ray
 from tuner.studies.design import grid, study
 
-# one Ray head on the machine at a time ('ray stop --force' stops every one, 'auto' joins whichever): under
-# pytest -n 2 the tests that start one run in one process, one after another (bench_cluster's run too)
-pytestmark = pytest.mark.xdist_group("ray")
+# every test here holds the machine's Ray lock (conftest.one_ray_head): under pytest -n 2 the other process's Ray
+# users (bench_cluster's run) wait, since 'ray stop --force' stops every head and 'auto' joins whichever is there
+pytestmark = pytest.mark.usefixtures("one_ray_head")
 
 RUN = [sys.executable, "-m", "twin.run"]
 DESIGNS = {"cad.S": (0.05, 0.07)}
@@ -39,9 +39,10 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.fixture(scope="module")
-def head(tmp_path_factory):
-    """A local Ray head with 2 CPUs, serving Ray Client too; yields its ray:// address; stopped afterwards."""
+@pytest.fixture
+def head(one_ray_head, tmp_path_factory):
+    """A local Ray head with 2 CPUs, serving Ray Client too; yields its ray:// address; stopped after the test (a
+    head per test: a module's head would hold the machine's Ray lock while this process runs other modules' tests)."""
     with local_head(2, str(tmp_path_factory.mktemp("ray")), client_port=_free_port()) as client:
         yield client
 

@@ -15,8 +15,9 @@ from twin.core import native as core
 from twin.core.outcomes import LAP_STATUS as STATUS  # enum lf_lap_status, checked against C when the library loads
 from twin.core.outcomes import Outcome
 
-COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED = (Outcome.COMPLETED.value, Outcome.OFF_TRACK.value, Outcome.LINE_LOST.value,
-                                                      Outcome.TIMEOUT.value, Outcome.DIVERGED.value)
+COMPLETED, OFF_TRACK, LINE_LOST, TIMEOUT, DIVERGED, WRONG_WAY = (
+    Outcome.COMPLETED.value, Outcome.OFF_TRACK.value, Outcome.LINE_LOST.value, Outcome.TIMEOUT.value,
+    Outcome.DIVERGED.value, Outcome.WRONG_WAY.value)
 
 
 Limits, Judge = core.LapLimitsC, core.JudgeC
@@ -37,7 +38,8 @@ def trace(twin):
 
 def c_judge(records: np.ndarray, length: float, limits: LapLimits) -> Judge:
     j = Judge()
-    lim = Limits(limits.max_cross_track_m, limits.max_progress_jump_m, limits.max_line_lost_s, limits.timeout_s)
+    lim = Limits(limits.max_cross_track_m, limits.max_progress_jump_m, limits.max_line_lost_s, limits.timeout_s,
+                 limits.max_backtrack_m)
     lib.lf_judge_start(ctypes.byref(j), length, ctypes.byref(lim))
     rows = np.ascontiguousarray(records, dtype=np.float64)
     for row in rows:
@@ -73,7 +75,8 @@ def test_a_real_lap(twin, trace):
     assert c.end_u == twin.track.length_m
 
 
-@pytest.mark.parametrize("case", ["off_track", "jump", "line_lost", "diverged", "tie", "timeout", "wrap_start"])
+@pytest.mark.parametrize("case", ["off_track", "jump", "line_lost", "diverged", "tie", "timeout", "wrap_start",
+                                  "wrong_way", "back_a_little"])
 def test_a_lap_broken_on_purpose(twin, trace, case):
     rec = trace.copy()
     k = len(rec) // 3
@@ -91,8 +94,14 @@ def test_a_lap_broken_on_purpose(twin, trace, case):
         rec[k, COL["offset_m"]] = 0.5
     elif case == "timeout":
         limits = LapLimits(timeout_s=4.0)
+    elif case in ("wrong_way", "back_a_little"):  # from record k on the robot drives the line backwards
+        length, p = twin.track.length_m, rec[:, COL["progress_m"]]
+        ahead = np.concatenate([[0.0], np.cumsum(np.mod(np.diff(p[k:]) + length / 2, length) - length / 2)])
+        back = 1.0 if case == "wrong_way" else 0.8 * limits.max_backtrack_m / ahead.max()  # 80 % of the limit
+        rec[k:, COL["progress_m"]] = np.mod(p[k] - back * ahead, length)
     elif case == "wrap_start":  # a start just behind 0: progress unwraps below zero (the trace ends short of a lap)
         rec[:, COL["progress_m"]] = np.mod(rec[:, COL["progress_m"]] - 0.05, twin.track.length_m)
     expected = {"off_track": OFF_TRACK, "jump": OFF_TRACK, "line_lost": LINE_LOST, "diverged": DIVERGED,
-                "tie": DIVERGED, "timeout": TIMEOUT, "wrap_start": None}[case]
+                "tie": DIVERGED, "timeout": TIMEOUT, "wrap_start": None, "wrong_way": WRONG_WAY,
+                "back_a_little": None}[case]
     assert_same(twin, rec, limits, expected)

@@ -8,6 +8,9 @@ nearest the centre of rotation (computed by the C loop at every tick, ``lf_locat
   jumps by more than ``max_progress_jump_m`` in one tick (it crossed to another part of the track);
 * ``line_lost``: no sensor has seen the line (calibrated value > 200) for ``max_line_lost_s`` (judged for the twin's
   own firmware, whose belief the trace carries; not for a controller FMU or a 3pi program, judged by the rest);
+* ``wrong_way``: its progress fell more than ``max_backtrack_m`` behind the furthest it had reached (the robot turned
+  round, after a slide say, and follows the line backwards: it would never finish, and the lap ends there instead of
+  at the timeout);
 * ``timeout``: the lap is not done after ``timeout_s`` of simulated time;
 * ``diverged``: the physics produced a non-finite state or MuJoCo raised an error;
 * ``calibration``: after the calibration turn some sensor's range max − min is below
@@ -50,6 +53,9 @@ class LapLimits:
     # the default turn takes 1.9 s; 20 s allows a turn ten times slower, while a near-stalled turn (hours of
     # simulated time, e.g. control.cal_duty 0.01 with control.full_speed 1) fails at once instead of hanging
     calibration_timeout_s: float = 20.0
+    # a line follower's centre of rotation does not move back along the line while it follows it (a pivot in a
+    # hairpin moves it back a few cm at most): 25 cm back, more than the off-track and jump limits, is a turn round
+    max_backtrack_m: float = 0.25
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -127,6 +133,7 @@ def event_details(lim: LapLimits) -> dict[str, str]:
             "off_track": f"more than {lim.max_cross_track_m * 100:g} cm from the line",
             "cut_across": "cut across to another part of the track",
             "line_lost": f"line not seen for {lim.max_line_lost_s:g} s",
+            "wrong_way": f"turned round: {lim.max_backtrack_m * 100:g} cm behind the furthest it had gone",
             "completed": "lap completed",
             "timeout": f"no lap after {lim.timeout_s:g} s"}
 
@@ -140,6 +147,7 @@ class LapJudge:
         alone, as a 3pi program is (its board reports the line always seen)."""
         self.track, self.limits, self.keep_trace, self.line_loss = track, limits, keep_trace, line_loss
         self.u_last: float | None = None  # unwrapped progress at the last tick
+        self.u_max = -np.inf  # the furthest unwrapped progress so far
         self.s_last = 0.0
         self.prev = (0.0, 0.0, 0.0)  # time, progress and energy at the last tick
         self.t_seen = 0.0  # last time the line was seen
@@ -164,11 +172,14 @@ class LapJudge:
             self.s_last = float(s[0])
             self.u_last = float(s[0] if s[0] < length / 2 else s[0] - length)
             self.prev = (float(t[0]), self.u_last, float(rec[0, COL["energy_j"]]))
+            self.u_max = self.u_last
         du = np.diff(np.concatenate([[self.s_last], s]))
         du = np.mod(du + length / 2, length) - length / 2
         # summed record by record from the last tick's progress (accumulate is sequential), as the C judge sums it:
         # the progress, and so a completed lap's time, does not depend on how the trace was chunked
         u = np.cumsum(np.concatenate([[self.u_last], du]))[1:]
+        # the furthest before each record (the C judge's u_max: a record that falls behind it is not a new furthest)
+        u_max = np.maximum.accumulate(np.concatenate([[self.u_max], u]))
         seen = rec[:, COL["line_seen"]] > 0 if self.line_loss else np.ones(len(rec), bool)
         last_seen = np.maximum.accumulate(np.where(seen, t, -np.inf))
         last_seen = np.maximum(last_seen, self.t_seen)
@@ -180,6 +191,7 @@ class LapJudge:
             (np.abs(offset) > lim.max_cross_track_m, Outcome.OFF_TRACK, say["off_track"]),
             (np.abs(du) > lim.max_progress_jump_m, Outcome.OFF_TRACK, say["cut_across"]),
             (t - last_seen > lim.max_line_lost_s, Outcome.LINE_LOST, say["line_lost"]),
+            (u < u_max[:-1] - lim.max_backtrack_m, Outcome.WRONG_WAY, say["wrong_way"]),
             (u >= length, Outcome.COMPLETED, say["completed"]),
             (t > lim.timeout_s, Outcome.TIMEOUT, say["timeout"]),
         ]
@@ -188,6 +200,7 @@ class LapJudge:
         self._account(rec[keep], u[keep], offset[keep])
         prev = self.prev if end == 0 else (float(t[end - 1]), float(u[end - 1]), float(rec[end - 1, COL["energy_j"]]))
         self.u_last, self.s_last, self.t_seen = float(u[-1]), float(s[-1]), float(last_seen[-1])
+        self.u_max = float(u_max[-1])
         self.prev = (float(t[-1]), float(u[-1]), float(rec[-1, COL["energy_j"]]))
         if why is None:
             return

@@ -27,7 +27,7 @@ from twin.core.outcomes import REFUSALS, c_names
 from twin.errors import TwinError
 
 MAGIC = 1279676025.0
-LAYOUT_VERSION = 9
+LAYOUT_VERSION = 10
 # the model sizes a head is written for, in the order of model_signature() in mujoco_glue.c
 SIGNATURE = ("nbody", "nsite", "ntex", "ntexdata", "nu", "na", "nv", "nnumericdata")
 
@@ -74,7 +74,8 @@ class Texture(ctypes.Structure):
 class LapLimitsC(ctypes.Structure):
     """``lf_lap_limits``: the failure thresholds of :class:`twin.core.lap.LapLimits` the C judge applies."""
 
-    _fields_ = [(n, c_double) for n in ("max_cross_track_m", "max_progress_jump_m", "max_line_lost_s", "timeout_s")]
+    _fields_ = [(n, c_double) for n in ("max_cross_track_m", "max_progress_jump_m", "max_line_lost_s", "timeout_s",
+                                                    "max_backtrack_m")]
 
 
 class JudgeC(ctypes.Structure):
@@ -83,7 +84,7 @@ class JudgeC(ctypes.Structure):
 
     _fields_ = [("limits", LapLimitsC), ("length_m", c_double), ("status", c_int32), ("started", c_int32),
                 ("records", c_int64)] + [(n, c_double) for n in (
-                    "u_last", "s_last", "t_seen", "prev_t", "prev_u", "prev_energy", "abs_sum", "abs_max", "end_t",
+                    "u_last", "s_last", "u_max", "t_seen", "prev_t", "prev_u", "prev_energy", "abs_sum", "abs_max", "end_t",
                     "end_u", "end_energy")]
 
 

@@ -58,6 +58,7 @@ class Outcome(str, enum.Enum):
     DIVERGED = "diverged"
     CALIBRATION = "calibration"
     REFUSED = "refused"  # the C refused the simulation (a program error, reported as a result)
+    WRONG_WAY = "wrong_way"  # turned round: follows the line backwards
     FIRMWARE_STALLED = "firmware_stalled"  # the binary in the loop stopped (twin.pil.lap)
     POWER = "power"  # the motors' supply failed: a regulator that did not start or shut off (twin.model.power)
     STOPPED = "stopped"  # ended undecided by its caller, whom its outcome could no longer matter (run_laps' deadline_s, cut)
@@ -66,7 +67,7 @@ class Outcome(str, enum.Enum):
 # ``enum lf_lap_status``: a lap the C judges (the FMU) is running (0) or ended with one of these outcomes (1 …)
 LAP_STATUS: tuple[str, ...] = ("running", Outcome.COMPLETED.value, Outcome.OFF_TRACK.value, Outcome.LINE_LOST.value,
                                Outcome.TIMEOUT.value, Outcome.DIVERGED.value, Outcome.CALIBRATION.value,
-                               Outcome.REFUSED.value)
+                               Outcome.REFUSED.value, Outcome.WRONG_WAY.value)
 
 
 def outcome_of(status: Status) -> Outcome:

@@ -79,7 +79,7 @@ def model_header(variables: Sequence[Variable], kind: str, token: str, ids: dict
         f"  {len(ids['caster_geoms'])}, {{{', '.join(map(str, casters))}}},",
         f"  {_c_double(limits.calibration_timeout_s)}, {_c_double(limits.min_calibration_range_us)},",
         f"  {{{_c_double(limits.max_cross_track_m)}, {_c_double(limits.max_progress_jump_m)}, "
-        f"{_c_double(limits.max_line_lost_s)}, {_c_double(limits.timeout_s)}}},",
+        f"{_c_double(limits.max_line_lost_s)}, {_c_double(limits.timeout_s)}, {_c_double(limits.max_backtrack_m)}}},",
         f"  {int(seed)}ull, {len(variables)}, {len(params)}, lf_fmu_vars, lf_fmu_params,",
         "};", "#endif", "",
     ])

@@ -31,6 +31,7 @@ int32_t lf_judge_feed(lf_judge *j, const lf_record *r) {
     j->started = 1;
     j->s_last = s;
     j->u_last = s < length / 2 ? s : s - length;
+    j->u_max = j->u_last;
     j->prev_t = t, j->prev_u = j->u_last, j->prev_energy = r->energy_j;
   }
   du = np_mod(s - j->s_last + length / 2, length) - length / 2;
@@ -40,6 +41,7 @@ int32_t lf_judge_feed(lf_judge *j, const lf_record *r) {
   else if (fabs(r->offset_m) > lim->max_cross_track_m) why = LF_LAP_OFF_TRACK;
   else if (fabs(du) > lim->max_progress_jump_m) why = LF_LAP_OFF_TRACK;
   else if (t - last_seen > lim->max_line_lost_s) why = LF_LAP_LINE_LOST;
+  else if (u < j->u_max - lim->max_backtrack_m) why = LF_LAP_WRONG_WAY;
   else if (u >= length) why = LF_LAP_COMPLETED;
   else if (t > lim->timeout_s) why = LF_LAP_TIMEOUT;
   /* the running sums of the C loop, so the statistics do not depend on how the trace is fed */
@@ -49,6 +51,7 @@ int32_t lf_judge_feed(lf_judge *j, const lf_record *r) {
   if (why == LF_LAP_RUNNING) {
     j->prev_t = t, j->prev_u = u, j->prev_energy = r->energy_j;
     j->u_last = u, j->s_last = s, j->t_seen = last_seen;
+    if (u > j->u_max) j->u_max = u;
     return LF_LAP_RUNNING;
   }
   j->status = why;

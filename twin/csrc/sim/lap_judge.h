@@ -5,7 +5,8 @@
  * Progress is the arc length of the centre-line point nearest the centre of rotation (lf_locate), unwrapped record
  * by record; the lap completes when it reaches the track length, at a time interpolated between the two records
  * around the crossing. It fails off the track (too far from the line, or a jump to another part of it), with the
- * line lost too long, after the timeout, or when the physics diverges. The first event wins; at the same record, the
+ * line lost too long, going the wrong way (turned round: progress fell max_backtrack_m behind the furthest it had
+ * reached), after the timeout, or when the physics diverges. The first event wins; at the same record, the
  * one listed first in lf_judge_feed wins, as in Python.
  */
 #ifndef LF_LAP_JUDGE_H
@@ -22,6 +23,7 @@ typedef struct {
   double max_progress_jump_m;
   double max_line_lost_s;
   double timeout_s;
+  double max_backtrack_m;
 } lf_lap_limits;
 
 typedef struct {
@@ -31,6 +33,7 @@ typedef struct {
   int32_t started;          /* a record has been fed */
   int64_t records;          /* records accounted for (up to and including the one that ended the lap) */
   double u_last, s_last;    /* unwrapped and raw progress at the last record [m] */
+  double u_max;             /* the furthest unwrapped progress so far [m] */
   double t_seen;            /* last time the line was seen [s] */
   double prev_t, prev_u, prev_energy; /* the last record before the current one */
   double abs_sum, abs_max;  /* cross-track statistics of the C loop's running sums [m] */

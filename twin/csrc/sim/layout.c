@@ -31,9 +31,11 @@ static const lf_field fields[] = {
 
   LF_FIELD(lf_lap_limits, max_cross_track_m), LF_FIELD(lf_lap_limits, max_progress_jump_m),
   LF_FIELD(lf_lap_limits, max_line_lost_s), LF_FIELD(lf_lap_limits, timeout_s),
+  LF_FIELD(lf_lap_limits, max_backtrack_m),
 
   LF_FIELD(lf_judge, limits), LF_FIELD(lf_judge, length_m), LF_FIELD(lf_judge, status), LF_FIELD(lf_judge, started),
-  LF_FIELD(lf_judge, records), LF_FIELD(lf_judge, u_last), LF_FIELD(lf_judge, s_last), LF_FIELD(lf_judge, t_seen),
+  LF_FIELD(lf_judge, records), LF_FIELD(lf_judge, u_last), LF_FIELD(lf_judge, s_last), LF_FIELD(lf_judge, u_max),
+  LF_FIELD(lf_judge, t_seen),
   LF_FIELD(lf_judge, prev_t), LF_FIELD(lf_judge, prev_u), LF_FIELD(lf_judge, prev_energy), LF_FIELD(lf_judge, abs_sum),
   LF_FIELD(lf_judge, abs_max), LF_FIELD(lf_judge, end_t), LF_FIELD(lf_judge, end_u), LF_FIELD(lf_judge, end_energy),
 
@@ -80,6 +82,7 @@ static const lf_status_name statuses[] = {
   LF_STATUS(LF_ERR_RAY), LF_STATUS(LF_ERR_FIRMWARE), LF_STATUS(LF_STALLED),
   LF_STATUS(LF_LAP_RUNNING), LF_STATUS(LF_LAP_COMPLETED), LF_STATUS(LF_LAP_OFF_TRACK), LF_STATUS(LF_LAP_LINE_LOST),
   LF_STATUS(LF_LAP_TIMEOUT), LF_STATUS(LF_LAP_DIVERGED), LF_STATUS(LF_LAP_CALIBRATION), LF_STATUS(LF_LAP_REFUSED),
+  LF_STATUS(LF_LAP_WRONG_WAY),
 };
 
 int32_t lf_status_names(const lf_status_name **out) {

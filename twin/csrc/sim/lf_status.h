@@ -32,7 +32,8 @@ enum lf_lap_status {
   LF_LAP_TIMEOUT = 4,
   LF_LAP_DIVERGED = 5,
   LF_LAP_CALIBRATION = 6,
-  LF_LAP_REFUSED = 7
+  LF_LAP_REFUSED = 7,
+  LF_LAP_WRONG_WAY = 8
 };
 
 /* One code's name, for Python's load-time check. */

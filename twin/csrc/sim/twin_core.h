@@ -22,7 +22,7 @@
 #include "sensor_physics.h"
 
 #define LF_MAGIC 1279676025.0  /* "LFTy": marks userdata the callback owns; other models are left alone */
-#define LF_LAYOUT_VERSION 9
+#define LF_LAYOUT_VERSION 10
 #define LF_SIGNATURE 8 /* model sizes in lf_sim.model_signature: see model_signature() in mujoco_glue.c */
 
 
