@@ -42,8 +42,9 @@ def pytest_runtest_makereport(item, call):
         report.longrepr = f"skipped under CI, where every test must run: {reason}"
 
 
-# The suite runs in two processes (pytest -n 2, pytest-xdist), each taking the next test when it is free. The tests that took 18 s or more in a rehearsal of .ci/run (--durations) start first, heaviest first, so that
-# the run does not end on one of them while the other process idles. Only the order changes; a test missing here runs in its place.
+# The suite runs in two processes (pytest -n 2, pytest-xdist), each taking the next test when it is free. The tests
+# that took 18 s or more in a rehearsal of .ci/run (--durations) start first, heaviest first, so that the run does not
+# end on one of them while the other process idles. Only the order changes; a test missing here runs in its place.
 HEAVY_FIRST = tuple(f"tests/{name}" for name in (
     "test_case2.py::test_lap_time_and_diagnosis_intervals_cover_hidden_values_across_the_documented_ranges",
     "test_case2.py::test_telemetry_intervals_cover_hidden_values_across_the_documented_ranges",

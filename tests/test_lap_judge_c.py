@@ -38,8 +38,7 @@ def trace(twin):
 
 def c_judge(records: np.ndarray, length: float, limits: LapLimits) -> Judge:
     j = Judge()
-    lim = Limits(limits.max_cross_track_m, limits.max_progress_jump_m, limits.max_line_lost_s, limits.timeout_s,
-                 limits.max_backtrack_m)
+    lim = Limits.of(limits)
     lib.lf_judge_start(ctypes.byref(j), length, ctypes.byref(lim))
     rows = np.ascontiguousarray(records, dtype=np.float64)
     for row in rows:

@@ -393,8 +393,7 @@ def _start_laps(fleet: Fleet, keys: list[tuple], turns: dict, failed: dict, limi
 
 def start_judge(sim: core.Sim, length_m: float, limits: LapLimits, deadline_s: float = math.inf) -> None:
     """Judge the phase in C too, so that the simulation stops the tick it is decided or passes ``deadline_s``."""
-    c = core.LapLimitsC(limits.max_cross_track_m, limits.max_progress_jump_m, limits.max_line_lost_s, limits.timeout_s,
-                        limits.max_backtrack_m)
+    c = core.LapLimitsC.of(limits)
     core.lib.lf_judge_start(ctypes.byref(sim.judge), length_m, ctypes.byref(c))
     sim.deadline_s = deadline_s
     sim.stop_raised = 0

@@ -75,7 +75,12 @@ class LapLimitsC(ctypes.Structure):
     """``lf_lap_limits``: the failure thresholds of :class:`twin.core.lap.LapLimits` the C judge applies."""
 
     _fields_ = [(n, c_double) for n in ("max_cross_track_m", "max_progress_jump_m", "max_line_lost_s", "timeout_s",
-                                                    "max_backtrack_m")]
+                                        "max_backtrack_m")]
+
+    @classmethod
+    def of(cls, limits) -> "LapLimitsC":
+        """The C judge's thresholds of ``limits`` (a :class:`twin.core.lap.LapLimits`), field by field by name."""
+        return cls(*(getattr(limits, name) for name, _ in cls._fields_))
 
 
 class JudgeC(ctypes.Structure):
@@ -84,8 +89,8 @@ class JudgeC(ctypes.Structure):
 
     _fields_ = [("limits", LapLimitsC), ("length_m", c_double), ("status", c_int32), ("started", c_int32),
                 ("records", c_int64)] + [(n, c_double) for n in (
-                    "u_last", "s_last", "u_max", "t_seen", "prev_t", "prev_u", "prev_energy", "abs_sum", "abs_max", "end_t",
-                    "end_u", "end_energy")]
+                    "u_last", "s_last", "u_max", "t_seen", "prev_t", "prev_u", "prev_energy", "abs_sum", "abs_max",
+                    "end_t", "end_u", "end_energy")]
 
 
 RECORD_FIELDS = (

@@ -17,6 +17,7 @@ from typing import Sequence
 
 import mujoco
 
+from twin.core.native import LapLimitsC
 from twin.errors import TwinError
 from twin.fmi.variables import KIND_CODE, PARAM, Variable, c_name
 
@@ -78,8 +79,7 @@ def model_header(variables: Sequence[Variable], kind: str, token: str, ids: dict
         f"  {KIND_CODE[kind]}, {ids['start_key']}, {ids['floor_geom']}, {len(tyres)}, {{{', '.join(map(str, tyres))}}},",
         f"  {len(ids['caster_geoms'])}, {{{', '.join(map(str, casters))}}},",
         f"  {_c_double(limits.calibration_timeout_s)}, {_c_double(limits.min_calibration_range_us)},",
-        f"  {{{_c_double(limits.max_cross_track_m)}, {_c_double(limits.max_progress_jump_m)}, "
-        f"{_c_double(limits.max_line_lost_s)}, {_c_double(limits.timeout_s)}, {_c_double(limits.max_backtrack_m)}}},",
+        f"  {{{', '.join(_c_double(getattr(limits, name)) for name, _ in LapLimitsC._fields_)}}},",  # lf_lap_limits
         f"  {int(seed)}ull, {len(variables)}, {len(params)}, lf_fmu_vars, lf_fmu_params,",
         "};", "#endif", "",
     ])
