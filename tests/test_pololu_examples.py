@@ -96,19 +96,15 @@ def test_digital1_lights_red_while_pc1_reads_high_through_its_pull_up(examples):
     assert led_changes(report) == [(pytest.approx(0.0, abs=0.005), True)]
 
 
-LED_STEP_LIMIT = ("board emulation limit: an LED is shown per 1 ms physics step, lit when its line was high for half "
-                  "of it or more (twin/csrc/pil/avr_board.c leds_step), so analog1's ~4 kHz dimming shows fully off "
-                  "below 50 % and fully on above: the brightness Pololu documents is not reported")
-
-
-@pytest.mark.xfail(strict=True, reason=LED_STEP_LIMIT)
 @pytest.mark.parametrize("trimmer_v", [1.0, 4.0])
 def test_analog1_dims_the_red_led_as_the_trimmer_reads(examples, trimmer_v):
     """analog1/test.c:22-48: the trimmer averaged over 20 8-bit readings (avg), the red LED off for 256 - avg µs and on
-    for avg + 1 µs: lit (avg + 1) / 257 of the time, avg = V / 5 V * 256 (8-bit ADC, ATmega328P datasheet 24.7)."""
+    for avg + 1 µs: lit (avg + 1) / 257 of the time, avg = V / 5 V * 256 (8-bit ADC, ATmega328P datasheet 24.7). Far
+    faster than a 1 ms physics step shows: the brightness is the LED's time lit, counted to the cycle; the loop's own
+    instructions (the ADC's bookkeeping, a few µs a pass, while the LED is on) add to the on time: 0.02 of slack."""
     _, report, _ = run("analog1", 1.0, trimmer_v=trimmer_v)
     avg = min(255, int(trimmer_v / 5.0 * 256))
-    assert lit_share(report) == pytest.approx((avg + 1) / 257, abs=0.08)
+    assert lit_share(report) == pytest.approx((avg + 1) / 257, abs=0.02)
 
 
 def test_servo_control_using_delays_pulses_pd1_every_20_ms(examples):
@@ -118,7 +114,7 @@ def test_servo_control_using_delays_pulses_pd1_every_20_ms(examples):
     rises = [t for t, v in led_changes(report) if v]
     periods = [b - a for a, b in zip(rises, rises[1:])]
     assert len(rises) >= 40 and periods == pytest.approx([0.020] * len(periods), abs=0.0015)
-    assert 0.06 - 0.025 <= lit_share(report) <= 0.09 + 0.025  # shown over 1 ms steps: half a step either way
+    assert 0.06 <= lit_share(report) <= 0.09  # the time lit, counted to the cycle
 
 
 # --- the buzzer -------------------------------------------------------------------------------------------------
@@ -378,25 +374,32 @@ def test_wheel_encoders1_counts_nothing_on_a_3pi_without_encoders(examples):
 
 # --- Timer1's phase-correct PWM with interrupts: OrangutanServos and OrangutanPulseIn ----------------------------
 
-SERVO_DEFECT = ("board emulation defect: in Timer1's phase-correct modes the glue counts as a fast PWM at twice the "
-                "prescaler, so a compare match interrupts once a period instead of twice (up and down, datasheet "
-                "15.9.5); OrangutanServos toggles its pin on each, and PD1 is then high ~18 ms of 20 instead of low")
-
-
-@pytest.mark.xfail(strict=True, reason=SERVO_DEFECT)
-@pytest.mark.parametrize("name, pulse_us, presses", [
-    ("servos1", 1700, ()),  # servos1/test.c:44-53: servo 1 on PD1 at 1700 µs
-    ("pulsein1", 1250 + 511 // 2, ()),  # pulsein1/test.c:33, :43, :61: PD1 at 1250 + trimpot / 2 µs
-])
-def test_orangutan_servos_pulse_pd1_for_the_target_width_every_20_ms(examples, name, pulse_us, presses):
-    """OrangutanServos (src/OrangutanServos/OrangutanServos.cpp:73-196, :434-444): Timer1 phase-correct with TOP =
-    ICR1 = 25000, a 2.5 ms slot per servo, eight slots; a servo's pin rises at the down-counting match with OCR1B
-    and falls at the up-counting one: high for the target width once every 20 ms. PD1 is the red LED."""
-    _, report, _ = run(name, 1.0, presses)
-    rises = [t for t, v in led_changes(report) if v]
+def test_servos1_pulses_pd1_for_1700_us_every_20_ms(examples):
+    """OrangutanServos (src/OrangutanServos/OrangutanServos.cpp:73-196, :434-444) as servos1/test.c:44-53 starts it,
+    servo 1 on PD1 (the red LED) at 1700 µs: Timer1 phase-correct with TOP = ICR1 = 25000 at 20 MHz, a 2.5 ms slot
+    per servo, eight slots; in a servo's slot its pin is toggled at the down-counting match with OCR1B and again at
+    the up-counting one (datasheet 16.9.4: two matches a period), high for the target width once every 20 ms. Read
+    once the target is in force (from 0.2 s on): before, OCR1B is 0 and its one match a period, at BOTTOM, leaves the
+    pin high."""
+    rises = [t for t, v in led_changes(run("servos1", 1.0)[1]) if v and t >= 0.2]
     periods = [b - a for a, b in zip(rises, rises[1:])]
-    assert periods and periods == pytest.approx([0.020] * len(periods), abs=0.0015)
-    assert lit_share(report) == pytest.approx(pulse_us * 1e-6 / 0.020, abs=0.03)
+    assert len(periods) >= 38 and periods == pytest.approx([0.020] * len(periods), abs=0.0015)
+    lit = [run("servos1", t)[1].led_lit_s[0] for t in (0.2, 1.0)]
+    assert (lit[1] - lit[0]) / 0.8 == pytest.approx(1700e-6 / 0.020, rel=0.01)  # the period: 2 (TOP + 1) clocks
+
+
+def test_pulsein1_pulses_pd1_for_the_trimmer_s_width_in_its_servo_slot(examples):
+    """pulsein1/test.c:33, :43, :61: servo 0 on PD1 at 1250 + trimmer / 2 µs (1505 µs at mid travel) by
+    OrangutanServos, as servos1's. Its main loop also writes the LCD all the time, and OrangutanLCD's send() keeps
+    PORTD before each byte and writes it back after (pulsein1.hex: in r16, 0x0b at 0x34e, out 0x0b, r16 at 0x37a):
+    when the servo's interrupt toggles PD1 in between, the write-back undoes it and PD1 stays high to its next
+    slot. That race is the program's own, on the robot as here (measured: 18 of the 40 slots from 0.2 s to 1 s show
+    a clean pulse). Each clean pulse (at most two 1 ms steps lit) starts on the 20 ms grid."""
+    changes = [(t, v) for t, v in led_changes(run("pulsein1", 1.0)[1]) if t >= 0.2]
+    pulses = [(a, b - a) for (a, up), (b, _) in zip(changes, changes[1:]) if up]
+    short = [a for a, width in pulses if width <= 0.0025]
+    assert len(short) >= 13  # of 40 slots: a third
+    assert all(abs((a - short[0] + 0.01) % 0.020 - 0.01) <= 0.0015 for a in short)
 
 
 def test_pulsein1_sees_d0_held_high_by_its_pull_up(examples):
@@ -406,12 +409,11 @@ def test_pulsein1_sees_d0_held_high_by_its_pull_up(examples):
     assert screens(report)[-1] == "D0: HIGH"
 
 
-@pytest.mark.xfail(strict=True, reason="board emulation defect: Timer1's compare output on OC1B (PB2) drives the "
-                   "buzzer but PB2's level never changes for the pin-change interrupt OrangutanPulseIn times, so the "
-                   "program sees the pin stuck low")
 def test_pulsein2_measures_the_buzzers_pwm_frequency_and_duty(examples):
     """pulsein2/test.c:36 "!L4 MS EDCDEEE2…" (E4 first, 330 Hz at V15, duty 50 %); :64-84 while a note sounds its PB2
-    pulses are timed: "330 Hz" on line 1, "DC: 50%" on line 2."""
+    pulses are timed by pin-change interrupts and Timer2's ticks: "330 Hz" on line 1, "DC: 50%" on line 2. Needs OC1B
+    to drive PB2 in Timer1's phase-correct mode and OrangutanTime's overflow interrupt, masked for a few cycles on
+    every read of its clock, to run once unmasked (datasheet 6.7: a flag is remembered until it is enabled)."""
     _, report, _ = run("pulsein2", 0.3, ())
     check_notes(report.notes[:1], [("E4", 250)])
     first, second = screens(report)[-1].split("|")

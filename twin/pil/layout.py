@@ -56,7 +56,7 @@ class BoardStatus(ctypes.Structure):
     _fields_ = [("last_poll", c_uint64), ("polls", c_int64), ("last_drive", c_uint64), ("used", c_uint32),
                 ("buttons", c_int32), ("red", c_int32), ("green", c_int32), ("note", Note), ("frames_lost", c_int64),
                 ("notes_lost", c_int64), ("leds_lost", c_int64), ("resets", c_int64), ("first_reset", c_uint64),
-                ("last_reset", c_uint64)]
+                ("last_reset", c_uint64), ("red_lit", c_uint64), ("green_lit", c_uint64)]
 
 
 class AvrFwState(ctypes.Structure):

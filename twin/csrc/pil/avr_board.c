@@ -3,7 +3,8 @@
  *             input with its pull-up, outside a sensor read, counts as polling the buttons (Python's operator waits
  *             for it);
  *   LEDs      red PD1 and green PD7, lit when driven high; the UART's TX (PD1) idles high. A line's share of the step
- *             high decides what the LED shows (the LCD's microsecond writes on PD7 do not light it);
+ *             high decides what the LED shows (the LCD's microsecond writes on PD7 do not light it); the time each
+ *             line was high is counted to the cycle, so a PWM-dimmed LED's brightness is its share of the run;
  *   buzzer    Timer1's PWM on OC1B (PB2): each note's frequency from the timer's mode, prescaler and TOP, its duty
  *             from OCR1B, as OrangutanBuzzer sets them (src/OrangutanBuzzer/OrangutanBuzzer.cpp, playFrequency);
  *   ADC       ADC6: 2/3 of the battery voltage, ADC7: the trimmer, against AVCC = 5 V (OrangutanAnalog.cpp,
@@ -60,7 +61,7 @@ void pil_led_update(lf_avr *a) {
   uint64_t now = a->avr->cycle;
   int k;
   for (k = 0; k < 2; k++) {
-    if (b->led_now[k]) b->led_on[k] += now - b->led_since;
+    if (b->led_now[k]) b->led_on[k] += now - b->led_since, b->led_lit[k] += now - b->led_since;
     b->led_now[k] = led_line(a, k ? LF_LED_GREEN_PIN : LF_LED_RED_PIN);
   }
   b->led_since = now;
@@ -231,6 +232,8 @@ void lf_avr_board_status(const lf_avr *a, lf_board_status *out) {
   out->last_poll = b->last_poll, out->polls = b->polls, out->last_drive = b->last_drive, out->used = b->used;
   out->buttons = b->buttons, out->red = b->led_shown[0], out->green = b->led_shown[1];
   out->resets = b->resets, out->first_reset = b->first_reset, out->last_reset = b->last_reset;
+  out->red_lit = b->led_lit[0] + (b->led_now[0] ? a->avr->cycle - b->led_since : 0);
+  out->green_lit = b->led_lit[1] + (b->led_now[1] ? a->avr->cycle - b->led_since : 0);
   if (b->sounding) out->note = b->note;
   else memset(&out->note, 0, sizeof out->note);
 }

@@ -2,6 +2,7 @@
  * MuJoCo, inside a model of the Pololu 3pi's board. Python's face: twin.pil.mcu. The glue's files, one concern each,
  * share what this header declares:
  *   avr_mcu.c       the MCU's lifetime: a program's flash image loaded onto a fresh MCU, its RAM and EEPROM, free runs
+ *   avr_timers.c    the timers where simavr 1.6 falls short: phase-correct modes, their compares up and down, ICR1
  *   avr_lockstep.c  the lockstep with the physics, step by step, and the traced firmware's watchdog
  *   avr_sensors.c   the QTR-RC sensor lines: a released line falls when the twin's sensor physics says
  *   avr_motors.c    the motors' voltages, decoded from the timers' PWM and the pins' directions
@@ -30,7 +31,7 @@
 
 /* ATmega328P data-space addresses (datasheet, "Register Summary") */
 enum { PINB = 0x23, DDRB = 0x24, PORTB = 0x25, PINC = 0x26, DDRC = 0x27, PORTC = 0x28, PIND = 0x29, DDRD = 0x2A,
-       PORTD = 0x2B, EIMSK = 0x3D, TCCR0A = 0x44, TCCR0B = 0x45, OCR0A = 0x47, OCR0B = 0x48, SPCR = 0x4C, ACSR = 0x50,
+       PORTD = 0x2B, PCIFR = 0x3B, EIFR = 0x3C, EIMSK = 0x3D, TCCR0A = 0x44, TCCR0B = 0x45, OCR0A = 0x47, OCR0B = 0x48, SPCR = 0x4C, ACSR = 0x50,
        TIMSK1 = 0x6F, ADCSRA = 0x7A, ADMUX = 0x7C, TCCR1A = 0x80, TCCR1B = 0x81, ICR1L = 0x86, OCR1AL = 0x88,
        OCR1BL = 0x8A, TCCR2A = 0xB0, TCCR2B = 0xB1, OCR2A = 0xB3, OCR2B = 0xB4, TWCR = 0xBC, UCSR0B = 0xC1 };
 /* by LF_PORT_*: a port's direction and output registers and its letter (simavr names its IRQs by the letter) */
@@ -126,6 +127,7 @@ typedef struct {
   int64_t frames_lost, notes_lost, leds_lost; /* events not kept because Python had not drained them */
   int64_t resets;          /* MCU resets after power-up: on this board only its watchdog resets it */
   uint64_t first_reset, last_reset; /* their cycles */
+  uint64_t red_lit, green_lit; /* cycles each LED's line was high since power-up: a PWM-dimmed LED's brightness */
 } lf_board_status;
 
 /* An I/O module of ours whose only job is simavr's reset hook (avr_board.c): io first, as simavr's modules have it. */
@@ -157,7 +159,7 @@ typedef struct {
   int32_t nnotes;
   uint8_t pb2_seen, txen;
   /* LEDs: on-cycles integrated over the step, the shown state, its changes */
-  uint64_t led_since, led_on[2];
+  uint64_t led_since, led_on[2], led_lit[2];
   int32_t led_now[2], led_shown[2];
   lf_led_event leds[LED_EVENTS];
   int32_t nleds;
@@ -180,14 +182,33 @@ typedef struct {
   struct lf_avr *a;
   int32_t before;          /* mine runs before simavr's own write (the register still holds its old value) */
 } write_hook;
-#define WRITE_HOOKS 32
+#define WRITE_HOOKS 64
+
+/* A timer in a phase-correct mode, whose compares the glue matches itself (avr_timers.c). */
+typedef struct {
+  struct lf_avr *a;
+  int32_t k;               /* Timer k */
+  int32_t active;          /* counting in a phase-correct mode */
+  int32_t restart;         /* the TCCR write being handled changes the mode or the clock */
+  uint64_t bottom;         /* cycle of this period's BOTTOM */
+  uint32_t ocr[2];         /* OCRnA, OCRnB in force (double-buffered: taken at TOP or BOTTOM) */
+  uint8_t level[2];        /* OCnA, OCnB */
+  uint8_t driving[2];      /* the compare output drives its pin */
+  uint16_t r_ocr[2];       /* simavr's compare registers, given back when the timer leaves the mode */
+  avr_io_read_t tcnt_read; /* simavr's TCNTn reader, chained */
+  void *tcnt_param;
+} pil_phase_timer;
 
 typedef struct lf_avr {
   avr_t *avr;
   write_hook hooks[WRITE_HOOKS];
   int32_t nhooks;
-  struct avr_timer_t *timers[3];             /* Timer0, 1, 2 (avr_mcu.c corrects their phase-correct modes) */
+  struct avr_timer_t *timers[3];             /* Timer0, 1, 2 (avr_timers.c corrects their phase-correct modes) */
   uint8_t cs_div[3][16];                     /* their prescaler tables as simavr built them */
+  pil_phase_timer phase[3];                  /* their compares in a phase-correct mode */
+  avr_io_write_t port_write[2];              /* simavr's PORTB and PORTD writers, behind the glue's (avr_timers.c) */
+  void *port_param[2];
+  uint8_t port_written[2];                   /* what the program last wrote to PORTB and PORTD */
   uint32_t f_cpu;
   /* the twin firmware's globals (data-space addresses, 0 where absent): with all four, each tick is traced from RAM */
   uint16_t a_state, a_raw, a_tick_mode, a_ticks;
@@ -233,6 +254,8 @@ static inline uint64_t cycles_of(const lf_avr *a, double seconds) { return (uint
 
 /* Shared by the glue's files only: not exported from the library. */
 #pragma GCC visibility push(hidden)
+/* avr_timers.c */
+void pil_connect_timers(lf_avr *a);  /* the timers' missing modes, their phase-correct compares, ICR1 as TOP */
 /* avr_mcu.c */
 void pil_watch_write(lf_avr *a, uint16_t addr, avr_io_write_t fn, int before); /* fn(avr, addr, v, a) after (or
                                                                                   before) simavr's own write */

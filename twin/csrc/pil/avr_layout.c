@@ -73,7 +73,8 @@ static const lf_field fields[] = {
   LF_FIELD(lf_board_status, used), LF_FIELD(lf_board_status, buttons), LF_FIELD(lf_board_status, red),
   LF_FIELD(lf_board_status, green), LF_FIELD(lf_board_status, note), LF_FIELD(lf_board_status, frames_lost),
   LF_FIELD(lf_board_status, notes_lost), LF_FIELD(lf_board_status, leds_lost), LF_FIELD(lf_board_status, resets),
-  LF_FIELD(lf_board_status, first_reset), LF_FIELD(lf_board_status, last_reset),
+  LF_FIELD(lf_board_status, first_reset), LF_FIELD(lf_board_status, last_reset), LF_FIELD(lf_board_status, red_lit),
+  LF_FIELD(lf_board_status, green_lit),
 };
 
 int32_t lf_avr_layout(const lf_field **out) {

@@ -10,7 +10,7 @@
 #include <simavr/avr_eeprom.h>
 #include <simavr/avr_extint.h>
 #include <simavr/avr_ioport.h>
-#include <simavr/avr_timer.h>
+#include <simavr/sim_interrupts.h>
 #include <simavr/sim_io.h>
 #include <simavr/sim_irq.h>
 
@@ -46,107 +46,48 @@ void pil_watch_write(lf_avr *a, uint16_t addr, avr_io_write_t fn, int before) {
   a->avr->io[io].w.c = chained_write, a->avr->io[io].w.param = h;
 }
 
-/* simavr 1.6's timers (cores/sim_megax8.h) know no Timer1 WGM 10 and 11 (phase-correct PWM with TOP = ICR1 or OCR1A,
- * the mode libpololu-avr's OrangutanBuzzer plays notes in: without it Timer1 never overflows and is_playing() waits
- * for ever) nor the 8-bit timers' WGM 1 and 5, and it counts every phase-correct mode up to TOP and back to 0 in
- * (TOP + 1) prescaled clocks instead of 2 TOP (datasheet, "Phase Correct PWM Mode"). The glue adds the missing modes
- * and, while a timer is in a phase-correct mode, doubles its prescaler: overflows (and the notes they time) then come
- * every 2 (TOP + 1) clocks, within 1/TOP of the MCU's period. */
-static const uint8_t tccr_a[3] = {TCCR0A, TCCR1A, TCCR2A}, tccr_b[3] = {TCCR0B, TCCR1B, TCCR2B};
-
-static int phase_correct(int k, int wgm) {
-  return k == 1 ? (wgm >= 1 && wgm <= 3) || (wgm >= 8 && wgm <= 11) : wgm == 1 || wgm == 5;
-}
-
-static void before_tccr(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
-  lf_avr *a = (lf_avr *)param;
-  int k, i;
-  (void)avr;
-  for (k = 0; k < 3; k++) {
-    uint8_t ra = addr == tccr_a[k] ? v : reg(a, tccr_a[k]), rb = addr == tccr_b[k] ? v : reg(a, tccr_b[k]);
-    int wgm = (ra & 3) | ((rb >> 1) & (k == 1 ? 0xc : 0x4)), slow = phase_correct(k, wgm);
-    if (!a->timers[k] || (addr != tccr_a[k] && addr != tccr_b[k])) continue;
-    for (i = 1; i < 8; i++) /* CS 0: stopped; AVR_TIMER_EXTCLK_CHOOSE (0x80): the Tn pin clocks it */
-      if (a->cs_div[k][i] < 0x80) a->timers[k]->cs_div[i] = (uint8_t)(a->cs_div[k][i] + slow);
-  }
-}
-
-/* Timer1 with TOP = ICR1 (WGM 8, 10, 14), the modes of libpololu-avr's OrangutanServos, where simavr 1.6 falls short
- * twice. (1) It reads ICR1 only when the timer is reconfigured (a TCCR1A/B write that changes its clock or mode), so
- * a program that starts the clock first and sets ICR1 after (OrangutanServos: TCCR1B, then ICR1 = 25000) counts to
- * the old TOP, 0, for ever: an interrupt every few cycles, the program crawling. After an ICR1 write the glue stops
- * and restarts the clock through TCCR1B's own handlers, so the new TOP counts from then on (ICR1L: the low byte
- * completes a 16-bit write, ATmega328P datasheet 15.3). (2) It raises the input-capture flag at TOP ("the ICF1 flag
- * is set when TCNT1 reaches TOP", 15.9.3-15.9.5) only on its external-clock path, so OrangutanServos' TIMER1_CAPT
- * never ran. The glue raises it once a period: with the overflow in fast PWM (WGM 14), half a period after it in the
- * phase-correct modes (WGM 8, 10: simavr's overflow is BOTTOM there), in step with simavr's own period (tov_base,
- * tov_cycles) from every reconfiguration on. */
-int pil_timer1_top_is_icr(lf_avr *a) {
-  uint8_t rb = reg(a, TCCR1B);
-  int wgm = (reg(a, TCCR1A) & 3) | ((rb >> 1) & 0xc);
-  return (rb & 7) && (wgm == 8 || wgm == 10 || wgm == 14) ? wgm : 0;
-}
-
-static void after_icr1(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
-  lf_avr *a = (lf_avr *)param;
-  uint8_t rb = reg(a, TCCR1B);
-  avr_io_addr_t io = AVR_DATA_TO_IO(TCCR1B);
-  (void)addr;
+/* Interrupt flags as the ATmega328P keeps them (datasheet 6.7 "Reset and Interrupt Handling"), where simavr 1.6 (and
+ * its master, sim_interrupts.c) does not:
+ * (1) A flag raised while its enable bit is off stays set, and the interrupt runs once the program enables it ("the
+ *     Interrupt Flag will be set and remembered until the interrupt is enabled"). simavr queues an interrupt only
+ *     when it is raised while enabled: libpololu-avr's OrangutanTime::ticks() masks TOIE2 for a few cycles on every
+ *     call, and each Timer2 overflow that landed there lost 256 ticks (102 us) of its clock. After a write to a
+ *     register holding enable bits, the glue queues each enabled vector whose flag is set.
+ * (2) A flag is cleared by writing a one to it. simavr gives PCIFR and EIFR (whose bits are only such flags, 13.2.3,
+ *     13.2.6) no writer at all, so a program's PCIFR = 7 set its flags instead; the glue's writer clears each flag
+ *     written with a one (and its pending interrupt) and keeps the others. */
+static void after_enable_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+  int i;
   (void)v;
-  if (!pil_timer1_top_is_icr(a)) return;
-  avr->io[io].w.c(avr, TCCR1B, (uint8_t)(rb & ~7u), avr->io[io].w.param); /* (the capture follows: after_tccr1) */
-  avr->io[io].w.c(avr, TCCR1B, rb, avr->io[io].w.param);
-}
-
-static avr_cycle_count_t capture_at_top(avr_t *avr, avr_cycle_count_t when, void *param) {
-  avr_timer_t *t = (avr_timer_t *)param;
-  avr_raise_interrupt(avr, &t->icr);
-  return t->tov_cycles > 1 ? when + t->tov_cycles : 0;
-}
-
-static void sync_capture(lf_avr *a) {
-  avr_timer_t *t = a->timers[1];
-  int wgm;
-  avr_cycle_count_t next;
-  if (!t) return;
-  avr_cycle_timer_cancel(a->avr, capture_at_top, t);
-  wgm = pil_timer1_top_is_icr(a);
-  if (!wgm || t->tov_cycles <= 1) return;
-  next = t->tov_base + (wgm == 14 ? 0 : t->tov_cycles / 2);
-  while (next <= a->avr->cycle) next += t->tov_cycles;
-  avr_cycle_timer_register(a->avr, next - a->avr->cycle, capture_at_top, t);
-}
-
-static void after_tccr1(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
-  (void)avr;
-  (void)addr;
-  (void)v;
-  sync_capture((lf_avr *)param);
-}
-
-static void fix_timers(lf_avr *a) {
-  static const avr_timer_wgm_t fast8 = AVR_TIMER_WGM_FASTPWM8(), fast9 = AVR_TIMER_WGM_FASTPWM9(),
-                               fast10 = AVR_TIMER_WGM_FASTPWM10(), ocr = AVR_TIMER_WGM_OCPWM(),
-                               icr = AVR_TIMER_WGM_ICPWM();
-  avr_io_t *port;
-  int k;
-  for (port = a->avr->io_port; port; port = port->next) {
-    avr_timer_t *t = (avr_timer_t *)port;
-    if (!port->kind || strcmp(port->kind, "timer") || t->name < '0' || t->name > '2') continue;
-    k = t->name - '0';
-    a->timers[k] = t;
-    memcpy(a->cs_div[k], t->cs_div, sizeof t->cs_div);
-    t->wgm_op[1] = fast8; /* counted as a fast 8-bit PWM at twice the prescaler, as all phase-correct modes */
-    if (k == 1) t->wgm_op[2] = fast9, t->wgm_op[3] = fast10, t->wgm_op[10] = icr, t->wgm_op[11] = ocr;
-    else t->wgm_op[5] = ocr;
+  (void)param;
+  for (i = 0; i < avr->interrupts.vector_count; i++) {
+    avr_int_vector_t *vec = avr->interrupts.vector[i];
+    if (vec->enable.reg == addr && !vec->pending && vec->raised.reg && avr_regbit_get(avr, vec->raised) &&
+        avr_regbit_get(avr, vec->enable))
+      avr_raise_interrupt(avr, vec);
   }
-  for (k = 0; k < 3; k++) {
-    pil_watch_write(a, tccr_a[k], before_tccr, 1);
-    pil_watch_write(a, tccr_b[k], before_tccr, 1);
+}
+
+static void clear_flags_written(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
+  int i;
+  (void)param;
+  for (i = 0; i < avr->interrupts.vector_count; i++) {
+    avr_int_vector_t *vec = avr->interrupts.vector[i];
+    if (vec->raised.reg == addr && (v & (vec->raised.mask << vec->raised.bit))) avr_clear_interrupt(avr, vec);
   }
-  pil_watch_write(a, ICR1L, after_icr1, 0);
-  pil_watch_write(a, TCCR1A, after_tccr1, 0);
-  pil_watch_write(a, TCCR1B, after_tccr1, 0);
+  avr->data[addr] &= (uint8_t)~v;
+}
+
+static void fix_interrupt_flags(lf_avr *a) {
+  avr_int_table_p table = &a->avr->interrupts;
+  int i, j;
+  for (i = 0; i < table->vector_count; i++) {
+    uint16_t enable = table->vector[i]->enable.reg, raised = table->vector[i]->raised.reg;
+    avr_io_addr_t io = AVR_DATA_TO_IO(raised);
+    for (j = 0; j < i && table->vector[j]->enable.reg != enable; j++) continue;
+    if (enable && j == i) pil_watch_write(a, enable, after_enable_write, 0);
+    if ((raised == EIFR || raised == PCIFR) && !a->avr->io[io].w.c) a->avr->io[io].w.c = clear_flags_written;
+  }
 }
 
 /* A program's flash (and EEPROM) image onto a fresh MCU. NULL with the reason in err if simavr cannot. Python has
@@ -191,7 +132,8 @@ lf_avr *lf_avr_open(const uint8_t *flash, uint32_t flash_size, const uint8_t *ee
     lf_avr_close(a);
     return 0;
   }
-  fix_timers(a);
+  fix_interrupt_flags(a);
+  pil_connect_timers(a);
   pil_connect_uart(a);
   pil_connect_sensors(a);
   pil_connect_motors(a);

@@ -189,6 +189,7 @@ def run_board_lap(twin: DigitalTwin, program: Program, seed: int = 0, limits: La
         ram_total_bytes=fw.RAM_BYTES, cycles=int(status.cycle), awake_share=int(status.awake) / max(1, int(status.cycle)),
         lap_start_s=clock.start_s, restarts=clock.restarts, presses=tuple(presses), uart_lines=telemetry.lines,
         events_lost=int(board.frames_lost + board.notes_lost + board.leds_lost), resets=int(board.resets),
+        led_lit_s=(int(board.red_lit) / fw.F_CPU_HZ, int(board.green_lit) / fw.F_CPU_HZ),
         reset_span_s=(log.seconds(board.first_reset), log.seconds(board.last_reset)) if board.resets else None)
     return result, report
 

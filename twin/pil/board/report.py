@@ -32,7 +32,8 @@ class BoardReport:
     presses: tuple[Press, ...]
     lcd: tuple[tuple[float, str], ...]
     notes: tuple[tuple[float, float, float, float], ...]  # start, end [s], frequency [Hz], duty
-    leds: tuple[tuple[float, bool, bool], ...]  # t [s], red, green: after each change
+    leds: tuple[tuple[float, bool, bool], ...]  # t [s], red, green: as shown per physics step, after each change
+    led_lit_s: tuple[float, float]  # red, green: how long each LED's line was high over the run [s], to the cycle
     uart_lines: int
     unmodelled: tuple[str, ...]
     events_lost: int
@@ -50,18 +51,12 @@ class BoardReport:
         return self.lcd[-1][1] if self.lcd else ""
 
     def led_summary(self, end_s: float) -> dict:
-        """The LEDs at the end, how often they changed and the share of the run each was lit."""
-        on = {"red": 0.0, "green": 0.0}
-        state, since = (False, False), 0.0
-        for t, red, green in self.leds:
-            on["red"] += (t - since) * state[0]
-            on["green"] += (t - since) * state[1]
-            state, since = (red, green), t
-        on["red"] += (end_s - since) * state[0]
-        on["green"] += (end_s - since) * state[1]
+        """The LEDs as shown at the end, how often that changed, and the share of the run each LED's line was high:
+        its brightness, also when a PWM dims it faster than a physics step shows."""
+        final = self.leds[-1][1:] if self.leds else (False, False)
         span = max(end_s, 1e-9)
-        return {"final": {"red": state[0], "green": state[1]}, "changes": len(self.leds),
-                "lit_share": {k: v / span for k, v in on.items()}}
+        return {"final": {"red": final[0], "green": final[1]}, "changes": len(self.leds),
+                "lit_share": {"red": self.led_lit_s[0] / span, "green": self.led_lit_s[1] / span}}
 
     def summary(self) -> dict:
         end_s = self.cycles / self.f_cpu_hz
