@@ -237,6 +237,41 @@ def test_the_forecast_filters_the_evidence_and_races_the_gains_on_the_twin():
     assert one.laps == 0  # nothing raced on too little evidence
 
 
+def test_a_race_is_kept_in_the_cache_and_read_back_bit_for_bit_by_a_new_process(monkeypatch, tmp_path):
+    """The twin's race of the gains (the forecast's failure and observation models) is kept as a verified cache
+    entry: a process that has forgotten it (a new ``history``) reads it back equal, bit for bit, without racing the
+    twin; other gains are another race; an entry that holds another race's record is refused by name."""
+    import numpy as np
+
+    from lf_common.errors import LineFollowerError
+    from lf_common.files import write_manifest
+    from tuner.history import twin_edge as te
+    from twin.core.lap import LapLimits
+
+    monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path))
+    twin = DigitalTwin(track="oval")
+    ask = ("motion.mu", 0.9, 0.3, -1.0, 0, LapLimits(timeout_s=30.0), 2)
+    te.forget_races()
+    first = te.twin_edge(twin, PLAIN, *ask)
+    assert first.failure is not None and first.observation is not None and first.laps > 0
+    te.forget_races()
+    monkeypatch.setattr(te, "_twin_edge", lambda *a: pytest.fail("raced again"))
+    again = te.twin_edge(twin, PLAIN, *ask)
+    assert again.failure == first.failure and again.laps == first.laps and again.raced == first.raced
+    for name in ("values", "means", "covariances"):
+        assert np.array_equal(getattr(again.observation, name), getattr(first.observation, name))
+    with pytest.raises(pytest.fail.Exception, match="raced again"):
+        te.twin_edge(twin, {**PLAIN, "control.kp": PLAIN["control.kp"] * 1.1}, *ask)
+    [entry] = [e for e in (tmp_path / te.RACES).iterdir()]
+    doc = json.loads((entry / "race.json").read_text())
+    doc["record"]["seed"] = 99
+    (entry / "race.json").write_text(json.dumps(doc))
+    write_manifest(str(entry))  # a consistent entry, made by hand, of another race
+    te.forget_races()
+    with pytest.raises(LineFollowerError, match="holds another race"):
+        te.twin_edge(twin, PLAIN, *ask)
+
+
 def test_a_rebuild_gives_the_same_history_whatever_the_order_the_logs_arrive_in(tmp_path):
     """Three runs of robot r7 (grip aligned 0.8, 0.75, 0.7 on each run's laps 0-1), rebuilt in two orders and twice:
     the same alignments, in the order of the laps they measured (run k's laps 0-1 are laps 6k to 6k+1 of its life),

@@ -16,11 +16,18 @@ laps:
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
+import json
 import math
+import os
 
 import numpy as np
 from scipy.special import log_ndtr
 
+from lf_common.cache import cache_dir, cached_folder
+from lf_common.errors import LineFollowerError
+from lf_common.files import json_safe, read_json, write_json
 from tuner.prognostics import FailureModel, ObservationModel
 from tuner.prognostics.evidence import SLOW
 from twin.core.closed_loop import run_laps
@@ -123,24 +130,94 @@ def _lap_times(rows) -> tuple[float | None, float | None]:
 
 _RECENT: dict = {}  # the last few races, by what decides them: a forecast lap after lap races the same ladder
 RECENT = 8
+RACES = "twin-edges"  # their folder in the cache (lf_common.cache.cache_dir()), one verified entry per race
+STORE_FORMAT = 1
 
 
 def forget_races() -> None:
-    """Forget the races kept (the next forecast races the twin again, as a new process does)."""
+    """Forget the races kept in this process (the next forecast reads them from the cache folder, or races the twin
+    there is none, as a new process does)."""
     _RECENT.clear()
+
+
+@functools.cache
+def code_digest() -> str:
+    """What decides a race beside its inputs: the C core and the Python of the twin and of this race (a change to
+    either is a new key: a stored race is never read for other code)."""
+    import twin
+    import tuner
+
+    roots = [os.path.dirname(twin.__file__)] + [os.path.dirname(m.__file__) for m in _model_packages()]
+    files = [os.path.join(r, n) for root in roots for r, _, names in os.walk(root) for n in names
+             if n.endswith((".py", ".so", ".pyd", ".c", ".h"))]
+    files.append(__file__)
+    files.append(os.path.join(os.path.dirname(tuner.__file__), "prognostics", "evidence.py"))
+    h = hashlib.sha256()
+    for path in sorted(set(files)):
+        h.update(os.path.basename(path).encode() + b"\0")
+        with open(path, "rb") as f:
+            h.update(f.read())
+    return h.hexdigest()
+
+
+def _model_packages():
+    import lf_common
+    import line_sensor
+    import mjcf
+    import motors
+
+    return (lf_common, line_sensor, mjcf, motors)
+
+
+def race_record(twin: DigitalTwin, gains: dict, address: str, start: float, end: float, direction: float, seed: int,
+                limits: LapLimits, seeds: int) -> dict:
+    """Everything a race depends on, as JSON: the twin's configuration (robot, track, values), the gains, the
+    ladder and the code."""
+    from tuner.sensitivity.learned import config_record
+
+    return {"format": STORE_FORMAT, "twin": json.loads(json.dumps(config_record(twin), default=str)),
+            "gains": dict(sorted(gains.items())), "address": address, "start": start, "end": end,
+            "direction": direction, "seed": seed, "limits": dataclasses.asdict(limits), "seeds": seeds,
+            "ladder": [LADDER, REFINE, DENSE], "code": code_digest()}
+
+
+def _edge_doc(edge: TwinEdge) -> dict:
+    doc = dataclasses.asdict(dataclasses.replace(edge, observation=None))
+    o = edge.observation
+    doc["observation"] = None if o is None else {"names": list(o.names), "values": o.values.tolist(),
+                                                 "means": o.means.tolist(), "covariances": o.covariances.tolist()}
+    return doc
+
+
+def _edge_of(doc: dict) -> TwinEdge:
+    o = doc["observation"]
+    return TwinEdge(None if doc["failure"] is None else FailureModel(**doc["failure"]), doc["finished"],
+                    doc["failing"], doc["seconds_per_unit"], doc["lap_time_sd_s"], tuple(doc["raced"]), doc["laps"],
+                    None if o is None else ObservationModel(tuple(o["names"]), np.array(o["values"]),
+                                                            np.array(o["means"]), np.array(o["covariances"])))
 
 
 def twin_edge(twin: DigitalTwin, gains: dict, address: str, start: float, end: float, direction: float, seed: int,
               limits: LapLimits, seeds: int = SEEDS) -> TwinEdge:
-    """Race ``gains`` from ``address`` = ``start`` towards ``end`` (where the wear goes: ``direction``). The same
-    race asked again (the same robot, values, track, gains and ladder) is answered from the last few: it is
-    deterministic."""
-    key = (twin.robot_urdf, twin.track_source, tuple(sorted(twin.space.values.items())), tuple(sorted(gains.items())),
-           address, start, end, direction, seed, limits, seeds)
+    """Race ``gains`` from ``address`` = ``start`` towards ``end`` (where the wear goes: ``direction``). A race is
+    deterministic: the same race asked again (the same robot, values, track, gains, ladder and code) is answered
+    from the last few of this process, or from the cache folder, where each race is kept as a verified entry (JSON
+    floats read back bit for bit): a forecast after the first, in any process, does not race the twin again."""
+    record = race_record(twin, gains, address, start, end, direction, seed, limits, seeds)
+    key = hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()[:32]
     if key not in _RECENT:
         if len(_RECENT) >= RECENT:
             del _RECENT[next(iter(_RECENT))]
-        _RECENT[key] = _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds)
+
+        def race_into(folder: str) -> None:
+            edge = _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds)
+            write_json(os.path.join(folder, "race.json"), {"record": record, "edge": _edge_doc(edge)}, "the race")
+
+        folder = cached_folder(os.path.join(cache_dir(), RACES, key), race_into, f"the twin's race of {address}")
+        doc = read_json(os.path.join(folder, "race.json"), 1 << 24, "the race")
+        if doc["record"] != json.loads(json.dumps(json_safe(record))):  # a digest collision or a hand-made entry: not this race
+            raise LineFollowerError(f"cache {folder}: holds another race; delete it")
+        _RECENT[key] = _edge_of(doc["edge"])
     return _RECENT[key]
 
 
