@@ -204,12 +204,13 @@ def test_timer1_with_top_icr1_set_after_its_clock_counts_to_the_new_top(build):
 def test_timer1_phase_correct_matches_up_and_down_and_drives_oc1b(build):
     """Timer1 in phase-correct PWM with TOP = ICR1 (WGM 10), clk/8, ICR1 = 10000, OCR1B = 2500, COM1B = 2 on PB2
     (tests/firmware/board3pi/phase_pwm.c), counted over ~405 ms: 125 periods a second (20 MHz / (2 * 8 * 10000),
-    datasheet 16.9.4), each with two compare B matches (counting up and down) and one capture flag (TOP); PB2 changes twice a period as the pin-change interrupt reads it (a rise once), and a program's writes
-    to PORTB leave it to the compare output; TCNT1 read in the compare interrupt is OCR1B plus the interrupt's latency
-    counting up and minus about the same counting down (at most 20 counts = 160 cycles). The buzzer is OC1B: 125 Hz, duty 0.25.
-    First, the interrupt flags (datasheet 6.7): Timer2's overflow flag set while TOIE2 is off runs its interrupt once
-    TOIE2 is set (L1), and a pin-change flag cleared by writing a one to PCIFR does not interrupt while one left set
-    does (F0, then 1: "F1")."""
+    datasheet, "Phase Correct PWM Mode"), each with two compare B matches (counting up and down) and one capture
+    flag (TOP); PB2 changes twice a period as the pin-change interrupt reads it (a rise once), and a program's
+    writes to PORTB leave it to the compare output; TCNT1 read in the compare interrupt is OCR1B plus the
+    interrupt's latency counting up and minus about the same counting down (at most 20 counts = 160 cycles). The
+    buzzer is OC1B: 125 Hz, duty 0.25. First, the interrupt flags (datasheet, "Reset and Interrupt Handling"):
+    Timer2's overflow flag set while TOIE2 is off runs its interrupt once TOIE2 is set (L1), and a pin-change flag
+    cleared by writing a one to PCIFR does not interrupt while one left set does (F0, then 1: "F1")."""
     lap, report = run(build("phase_pwm"), timeout_s=3.0)
     shown = {text[0]: text for _, text in report.lcd if text}
     values = {line[0]: int(line[1:]) for text in shown.values() for line in text.split("\n") if line.strip()}

@@ -378,7 +378,7 @@ def test_servos1_pulses_pd1_for_1700_us_every_20_ms(examples):
     """OrangutanServos (src/OrangutanServos/OrangutanServos.cpp:73-196, :434-444) as servos1/test.c:44-53 starts it,
     servo 1 on PD1 (the red LED) at 1700 µs: Timer1 phase-correct with TOP = ICR1 = 25000 at 20 MHz, a 2.5 ms slot
     per servo, eight slots; in a servo's slot its pin is toggled at the down-counting match with OCR1B and again at
-    the up-counting one (datasheet 16.9.4: two matches a period), high for the target width once every 20 ms. Read
+    the up-counting one (datasheet, "Phase Correct PWM Mode": two matches a period), high for the target width once every 20 ms. Read
     once the target is in force (from 0.2 s on): before, OCR1B is 0 and its one match a period, at BOTTOM, leaves the
     pin high."""
     rises = [t for t, v in led_changes(run("servos1", 1.0)[1]) if v and t >= 0.2]
@@ -413,7 +413,7 @@ def test_pulsein2_measures_the_buzzers_pwm_frequency_and_duty(examples):
     """pulsein2/test.c:36 "!L4 MS EDCDEEE2…" (E4 first, 330 Hz at V15, duty 50 %); :64-84 while a note sounds its PB2
     pulses are timed by pin-change interrupts and Timer2's ticks: "330 Hz" on line 1, "DC: 50%" on line 2. Needs OC1B
     to drive PB2 in Timer1's phase-correct mode and OrangutanTime's overflow interrupt, masked for a few cycles on
-    every read of its clock, to run once unmasked (datasheet 6.7: a flag is remembered until it is enabled)."""
+    every read of its clock, to run once unmasked (datasheet, "Reset and Interrupt Handling": a flag is remembered until it is enabled)."""
     _, report, _ = run("pulsein2", 0.3, ())
     check_notes(report.notes[:1], [("E4", 250)])
     first, second = screens(report)[-1].split("|")

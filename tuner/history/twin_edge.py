@@ -215,7 +215,7 @@ def twin_edge(twin: DigitalTwin, gains: dict, address: str, start: float, end: f
 
         folder = cached_folder(os.path.join(cache_dir(), RACES, key), race_into, f"the twin's race of {address}")
         doc = read_json(os.path.join(folder, "race.json"), 1 << 24, "the race")
-        if doc["record"] != json.loads(json.dumps(json_safe(record))):  # a digest collision or a hand-made entry: not this race
+        if doc["record"] != json.loads(json.dumps(json_safe(record))):  # a hand-made entry (or a collision)
             raise LineFollowerError(f"cache {folder}: holds another race; delete it")
         _RECENT[key] = _edge_of(doc["edge"])
     return _RECENT[key]

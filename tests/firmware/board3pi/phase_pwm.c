@@ -1,13 +1,14 @@
 /* Timer1 in phase-correct PWM with TOP = ICR1 (WGM 10), clk/8, ICR1 = 10000: up 10000 counts and down 10000, a period
- * of 2 * 10000 * 8 cycles, 125 a second at 20 MHz (ATmega328P datasheet 15.9.4, 16.9.4). OC1B (PB2, COM1B = 2: clear
- * counting up, set counting down) at OCR1B = 2500 is high a quarter of each period, and compare B matches twice a
- * period; ICF1 comes at TOP, once (TOV1 at BOTTOM times board3pi.c's notes, so it is not counted here). Counted over 400 ms with the LCD quiet (its byte writes
- * restore PORTB), then shown screen by screen (tests/test_board.py):
+ * of 2 * 10000 * 8 cycles, 125 a second at 20 MHz (ATmega328P datasheet, Timer/Counter1, "Phase Correct PWM Mode").
+ * OC1B (PB2, COM1B = 2: clear counting up, set counting down) at OCR1B = 2500 is high a quarter of each period, and
+ * compare B matches twice a period; ICF1 comes at TOP, once (TOV1 at BOTTOM times board3pi.c's notes, so it is not
+ * counted here). Counted over 400 ms with the LCD quiet (its byte writes restore PORTB), then shown screen by screen
+ * (tests/test_board.py):
  *   "B<compare B interrupts>|P<PB2 pin changes>", "C<captures>|R<rises of PB2 read in the pin-change
- *   interrupt>", "U<highest TCNT1 in the compare
- *   interrupt>|D<lowest>", "W<writes to PORTB while counting>"
- * and before that two checks of the interrupt flags (datasheet 6.7): "L<Timer2 overflow interrupts run when TOIE2
- * is set after the flag>|F<pin-change interrupts after the flag was cleared by writing a one>G<... not cleared>". */
+ *   interrupt>", "U<highest TCNT1 in the compare interrupt>|D<lowest>", "W<writes to PORTB while counting>"
+ * and before that two checks of the interrupt flags ("Reset and Interrupt Handling"): "L<Timer2 overflow interrupts
+ * run when TOIE2 is set after the flag>|F<pin-change interrupts after the flag was cleared by writing a one, times
+ * ten, plus those after it was left set>". */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <util/delay.h>

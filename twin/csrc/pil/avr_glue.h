@@ -31,7 +31,8 @@
 
 /* ATmega328P data-space addresses (datasheet, "Register Summary") */
 enum { PINB = 0x23, DDRB = 0x24, PORTB = 0x25, PINC = 0x26, DDRC = 0x27, PORTC = 0x28, PIND = 0x29, DDRD = 0x2A,
-       PORTD = 0x2B, PCIFR = 0x3B, EIFR = 0x3C, EIMSK = 0x3D, TCCR0A = 0x44, TCCR0B = 0x45, OCR0A = 0x47, OCR0B = 0x48, SPCR = 0x4C, ACSR = 0x50,
+       PORTD = 0x2B, PCIFR = 0x3B, EIFR = 0x3C, EIMSK = 0x3D, TCCR0A = 0x44, TCCR0B = 0x45, OCR0A = 0x47,
+       OCR0B = 0x48, SPCR = 0x4C, ACSR = 0x50,
        TIMSK1 = 0x6F, ADCSRA = 0x7A, ADMUX = 0x7C, TCCR1A = 0x80, TCCR1B = 0x81, ICR1L = 0x86, OCR1AL = 0x88,
        OCR1BL = 0x8A, TCCR2A = 0xB0, TCCR2B = 0xB1, OCR2A = 0xB3, OCR2B = 0xB4, TWCR = 0xBC, UCSR0B = 0xC1 };
 /* by LF_PORT_*: a port's direction and output registers and its letter (simavr names its IRQs by the letter) */

@@ -46,15 +46,16 @@ void pil_watch_write(lf_avr *a, uint16_t addr, avr_io_write_t fn, int before) {
   a->avr->io[io].w.c = chained_write, a->avr->io[io].w.param = h;
 }
 
-/* Interrupt flags as the ATmega328P keeps them (datasheet 6.7 "Reset and Interrupt Handling"), where simavr 1.6 (and
+/* Interrupt flags as the ATmega328P keeps them (datasheet, "Reset and Interrupt Handling"), where simavr 1.6 (and
  * its master, sim_interrupts.c) does not:
  * (1) A flag raised while its enable bit is off stays set, and the interrupt runs once the program enables it ("the
  *     Interrupt Flag will be set and remembered until the interrupt is enabled"). simavr queues an interrupt only
  *     when it is raised while enabled: libpololu-avr's OrangutanTime::ticks() masks TOIE2 for a few cycles on every
  *     call, and each Timer2 overflow that landed there lost 256 ticks (102 us) of its clock. After a write to a
  *     register holding enable bits, the glue queues each enabled vector whose flag is set.
- * (2) A flag is cleared by writing a one to it. simavr gives PCIFR and EIFR (whose bits are only such flags, 13.2.3,
- *     13.2.6) no writer at all, so a program's PCIFR = 7 set its flags instead; the glue's writer clears each flag
+ * (2) A flag is cleared by writing a one to it. simavr gives PCIFR and EIFR (whose bits are only such flags, as
+ *     the datasheet's register descriptions have them) no writer at all, so a program's PCIFR = 7 set its flags
+ *     instead; the glue's writer clears each flag
  *     written with a one (and its pending interrupt) and keeps the others. */
 static void after_enable_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
   int i;

@@ -6,15 +6,15 @@
  *             phase-correct mode, doubles its prescaler: overflows (and the notes they time) come every 2 (TOP + 1)
  *             clocks, within 1/TOP of the MCU's period.
  *   compares  in a phase-correct mode simavr matches each compare once a period, at 2 (OCR + 1) clocks after BOTTOM.
- *             The datasheet ("Phase Correct PWM Mode", 15.9.4 and 16.7.4) matches twice, counting up and counting
+ *             The datasheet ("Phase Correct PWM Mode" of each timer) matches twice, counting up and counting
  *             down, and sets or clears the OCnx pin at each as COMnx says; OrangutanServos toggles a servo's pin in
  *             each TIMER1_COMPA interrupt and OrangutanPulseIn times the buzzer's OC1B pulses by pin-change
  *             interrupts. The glue takes those timers' compares from simavr (a compare it does not know the
  *             register of is never armed) and matches them itself, up and down, from simavr's own BOTTOM (tov_base,
- *             tov_cycles): the interrupt flag, the pin's level (raised on the timer's output IRQ, so a pin-change
- *             interrupt sees it; it overrides the PORTx bit, which the glue keeps at its level while it
- *             drives the pin, so that simavr's port keeps it and a read of PINx answers it), OCRnx double-buffered (taken at TOP, or at BOTTOM in WGM 8 and 9), and a read of TCNTn
- *             counts up and down.
+ *             tov_cycles): the interrupt flag; the pin's level, raised on the timer's output IRQ (a pin-change
+ *             interrupt sees it) and kept as the PORTx bit while the output drives the pin (it overrides PORTx:
+ *             simavr's port then keeps it and a read of PINx answers it); OCRnx double-buffered (taken at TOP, or
+ *             at BOTTOM in WGM 8 and 9); and a read of TCNTn counting up and down.
  *   ICR1      with TOP = ICR1 (WGM 8, 10, 14, OrangutanServos' modes) simavr reads ICR1 only when the timer is
  *             reconfigured, and raises the input-capture flag at TOP only on its external-clock path. */
 #include <string.h>
@@ -109,7 +109,7 @@ static void drive_pin(lf_avr *a, pil_phase_timer *p, int i, int level) {
 }
 
 /* The pins' levels at cycle c with COM 2 or 3: high below OCR counting up, at or below it counting down (so OCR 0
- * keeps the pin low and OCR = TOP high, datasheet 16.9.4). */
+ * keeps the pin low and OCR = TOP high, as the datasheet says). */
 static void levels_at(lf_avr *a, pil_phase_timer *p, span s, uint64_t c) {
   int i, down;
   uint32_t n = count_at(p, s, c, &down);
@@ -121,10 +121,11 @@ static void levels_at(lf_avr *a, pil_phase_timer *p, span s, uint64_t c) {
 
 static void take_ocr(lf_avr *a, pil_phase_timer *p, span s) {
   int i;
-  for (i = 0; i < 2; i++)
-    p->ocr[i] = i == 0 && top_is_ocra(p->k, wgm_now(a, p->k))
-                    ? s.top
-                    : reg(a, i ? ocr_b[p->k] : ocr_a[p->k]) | (p->k == 1 ? (uint32_t)reg(a, (i ? OCR1BL : OCR1AL) + 1) << 8 : 0u);
+  for (i = 0; i < 2; i++) {
+    uint16_t low = i ? ocr_b[p->k] : ocr_a[p->k];
+    uint32_t high = p->k == 1 ? (uint32_t)reg(a, (uint16_t)(low + 1)) << 8 : 0u; /* OCR1xH follows OCR1xL */
+    p->ocr[i] = i == 0 && top_is_ocra(p->k, wgm_now(a, p->k)) ? s.top : (reg(a, low) | high);
+  }
 }
 
 static uint64_t next_event(const pil_phase_timer *p, span s, uint64_t after) {
@@ -170,9 +171,10 @@ static void release_pins(lf_avr *a, pil_phase_timer *p) {
     avr_io_addr_t io = AVR_DATA_TO_IO(pin.reg);
     if (!p->driving[i] || (p->active && output_mode(a, p->k, i))) continue;
     p->driving[i] = 0, p->level[i] = 0;
-    if (pin.reg == PORTB || pin.reg == PORTD)
-      a->avr->io[io].w.c(a->avr, pin.reg, (uint8_t)((reg(a, pin.reg) & ~bit) | (a->port_written[pin.reg == PORTD] & bit)),
-                         a->avr->io[io].w.param);
+    if (pin.reg == PORTB || pin.reg == PORTD) {
+      uint8_t v = (uint8_t)((reg(a, pin.reg) & ~bit) | (a->port_written[pin.reg == PORTD] & bit));
+      a->avr->io[io].w.c(a->avr, pin.reg, v, a->avr->io[io].w.param);
+    }
   }
 }
 
@@ -261,7 +263,7 @@ static void after_timer_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *p
 }
 
 /* --- a program's PORTB/PORTD write: the bits a compare output drives keep its level (the output overrides PORTx,
- * datasheet 14.2 and 15.6.1); the program's own bits are kept for when the output lets go of the pin. */
+ * datasheet, "Compare Match Output Unit"); the program's own bits are kept for when the output lets go of the pin. */
 static void on_port_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
   lf_avr *a = (lf_avr *)param;
   int n = addr == PORTD, k, i;
