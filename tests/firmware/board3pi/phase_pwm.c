@@ -8,7 +8,10 @@
  *   interrupt>", "U<highest TCNT1 in the compare interrupt>|D<lowest>", "W<writes to PORTB while counting>"
  * and before that two checks of the interrupt flags ("Reset and Interrupt Handling"): "L<Timer2 overflow interrupts
  * run when TOIE2 is set after the flag>|F<pin-change interrupts after the flag was cleared by writing a one, times
- * ten, plus those after it was left set>". */
+ * ten, plus those after it was left set>"; and after it Timer0's 8-bit phase-correct PWM (WGM 1, clk/64, TOP 255:
+ * a period of 2 * 255 * 64 cycles, 612.7 Hz) with OCR0A = 64, COM0A = 2 on PD6, its pin timed by a pin-change
+ * interrupt on Timer1's count (clk/8): "X<rises in 100 ms>|H<the last pulse's high time in Timer1 counts>" (high
+ * for 2 * 64 * 64 cycles = 1024 counts). */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <util/delay.h>
@@ -17,6 +20,7 @@
 
 static volatile uint16_t matches_b, changes, rises, captures, late, pin_irqs, tcnt_hi, tcnt_lo = 0xffff;
 static volatile uint8_t writes;
+static volatile uint16_t rises0, rose_at, high0;
 
 ISR(TIMER1_COMPB_vect) {
   uint16_t n = TCNT1;
@@ -33,6 +37,16 @@ ISR(PCINT0_vect) {
   if (now != was) changes++;
   if (now && !was) rises++;
   was = now;
+}
+
+ISR(PCINT2_vect) {
+  uint16_t t = TCNT1;
+  if (PIND & (1 << PD6)) {
+    rises0++;
+    rose_at = t;
+  } else {
+    high0 = t - rose_at;
+  }
 }
 
 static void show(char a, uint16_t x, char b, uint16_t y) {
@@ -92,6 +106,20 @@ int main(void) {
   show('C', captures, 'R', rises);
   show('U', tcnt_hi, 'D', tcnt_lo);
   show('W', writes, ' ', 0);
+  /* Timer0, 8-bit phase-correct PWM on OC0A (PD6, the left motor's line) */
+  TCCR1A = 0;
+  TCCR1B = 1 << CS11; /* a free-running count at clk/8 to time the pin */
+  DDRD |= 1 << PD6;
+  PCMSK2 = 1 << PCINT22;
+  PCICR = 1 << PCIE2;
+  OCR0A = 64;
+  TCCR0A = (1 << COM0A1) | (1 << WGM00);
+  TCCR0B = (1 << CS01) | (1 << CS00);
+  sei();
+  delay_ms(100);
+  cli();
+  TCCR0B = 0;
+  show('X', rises0, 'H', high0);
   for (;;) {
   }
 }
