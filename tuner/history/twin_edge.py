@@ -135,8 +135,8 @@ STORE_FORMAT = 1
 
 
 def forget_races() -> None:
-    """Forget the races kept in this process (the next forecast reads them from the cache folder, or races the twin
-    there is none, as a new process does)."""
+    """Forget the races kept in this process: the next forecast reads its race from the cache folder (or races the
+    twin if it is not there), as a new process does."""
     _RECENT.clear()
 
 
@@ -152,9 +152,10 @@ def code_digest() -> str:
              if n.endswith((".py", ".so", ".pyd", ".c", ".h"))]
     files.append(__file__)
     files.append(os.path.join(os.path.dirname(tuner.__file__), "prognostics", "evidence.py"))
+    top = os.path.dirname(os.path.dirname(os.path.abspath(twin.__file__)))
     h = hashlib.sha256()
     for path in sorted(set(files)):
-        h.update(os.path.basename(path).encode() + b"\0")
+        h.update(os.path.relpath(path, top).encode() + b"\0")
         with open(path, "rb") as f:
             h.update(f.read())
     return h.hexdigest()
