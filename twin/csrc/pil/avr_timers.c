@@ -47,12 +47,13 @@ static void before_tccr(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) 
   int k, i;
   (void)avr;
   for (k = 0; k < 3; k++) {
-    uint8_t ra = addr == tccr_a[k] ? v : reg(a, tccr_a[k]), rb = addr == tccr_b[k] ? v : reg(a, tccr_b[k]);
-    int wgm = wgm_of(k, ra, rb), slow = phase_correct(k, wgm);
     avr_timer_t *t = a->timers[k];
+    uint8_t ra, rb;
+    int wgm, slow;
     if (!t || (addr != tccr_a[k] && addr != tccr_b[k])) continue;
-    a->phase[k].restart = wgm != wgm_now(a, k) ||
-                          (rb & 7) != (reg(a, tccr_b[k]) & 7);
+    ra = addr == tccr_a[k] ? v : reg(a, tccr_a[k]), rb = addr == tccr_b[k] ? v : reg(a, tccr_b[k]);
+    wgm = wgm_of(k, ra, rb), slow = phase_correct(k, wgm);
+    a->phase[k].restart = wgm != wgm_now(a, k) || (rb & 7) != (reg(a, tccr_b[k]) & 7);
     for (i = 1; i < 8; i++) /* CS 0: stopped; AVR_TIMER_EXTCLK_CHOOSE (0x80): the Tn pin clocks it */
       if (a->cs_div[k][i] < 0x80) t->cs_div[i] = (uint8_t)(a->cs_div[k][i] + slow);
     for (i = 0; i < 2; i++) /* the compares the glue matches itself: simavr arms none without a register */
@@ -214,9 +215,8 @@ static int timer_of(uint16_t addr) {
  * when TCNT1 reaches TOP", 15.9.3-15.9.5), once a period: with the overflow in fast PWM (WGM 14), half a period
  * after it in the phase-correct modes (simavr's overflow is BOTTOM there). */
 int pil_timer1_top_is_icr(lf_avr *a) {
-  uint8_t rb = reg(a, TCCR1B);
-  int wgm = (reg(a, TCCR1A) & 3) | ((rb >> 1) & 0xc);
-  return (rb & 7) && (wgm == 8 || wgm == 10 || wgm == 14) ? wgm : 0;
+  int wgm = wgm_now(a, 1);
+  return (reg(a, TCCR1B) & 7) && (wgm == 8 || wgm == 10 || wgm == 14) ? wgm : 0;
 }
 
 static void after_icr1(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param) {
