@@ -46,10 +46,9 @@ TYRE_SOLREF = (0.005, 1.0)  # [s, -] contact time constant and damping ratio; ne
 # bearings"; the rolling lever arm of a polymer ball on a hard floor, 0.08 mm over its 6.35 mm radius, adds 0.013,
 # inside that range). A caster with a ball in bearings (a ball-transfer unit) is nearer 0.005.
 CASTER_MU = 0.08
-# The default robot's casters still roll freely: with CASTER_MU the calibration turn, planned for wheels at
-# control.cal_duty of full speed, falls short at a 4.8 V battery (the robust envelope's corner), so the caster waits
-# for a turn planned with it (issue 33). `--set motion.caster_mu=0.08` gives it.
-CASTER_MU_DEFAULT = 0.0
+# The default robot's casters resist rolling as a plastic ball does (issue 33); `--set motion.caster_mu=0` gives the
+# frictionless caster the twin had before. The calibration turn is planned with it (control.cal_sweep).
+CASTER_MU_DEFAULT = CASTER_MU
 START_KEY = "start"
 
 

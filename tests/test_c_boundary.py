@@ -328,10 +328,10 @@ def test_a_turn_too_slow_fails_at_once(twin):
 def test_the_turn_limit_is_simulated_time(twin):
     p = twin.control_params()
     omega = p.cal_duty * twin.space.get("control.full_speed") * 0.016 / 0.0425  # Eq. 2: ω = R (ω_r − ω_l) / 2L
-    turn_s = 4 * round(p.cal_sweep_rad / (omega * p.dt_s)) * p.cal_sweeps * p.dt_s  # 4 · 47 · 2 · 5 ms = 1.88 s
-    assert turn_s == pytest.approx(1.88)
+    turn_s = 4 * round(p.cal_sweep_rad / (omega * p.dt_s)) * p.cal_sweeps * p.dt_s  # 4 · 61 · 2 · 5 ms = 2.44 s
+    assert turn_s == pytest.approx(2.44)  # 1.3 rad / (0.15 · 75.4 rad/s · 16 mm / 42.5 mm · 5 ms) = 61.06 ticks
     short = run_laps(twin, [{}], limits=LapLimits(calibration_timeout_s=turn_s - 0.005), keep_traces=False)[0]
-    assert short.failure == "calibration" and "would take 1.88 s" in short.detail
+    assert short.failure == "calibration" and "would take 2.44 s" in short.detail
     assert run_laps(twin, [{}], limits=LapLimits(calibration_timeout_s=turn_s + 0.005), keep_traces=False)[0].completed
 
 

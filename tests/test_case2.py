@@ -62,13 +62,28 @@ def test_the_refined_scan_finds_a_value_inside_a_narrow_steep_band():
 
 
 def test_telemetry_recovers_grip_and_battery_with_intervals_that_cover_them(robust_twin, tmp_path):
-    hidden = {"motion.mu": 0.62, "motor.supply_voltage": 5.0}
+    """A robot that lost 28 % of its grip on a battery at 5.9 V: both found, within 5 %, inside their intervals.
+    (With the caster's drag the robust gains slow the robot so much on a weaker battery that grip hardly moves the
+    lap below ≈ 5.8 V; there the fit can stop on the grip–battery ridge, the case below.)"""
+    hidden = {"motion.mu": 0.65, "motor.supply_voltage": 5.9}
     tel = read_telemetry(record(robust_twin, hidden, tmp_path / "run.jsonl"))
     r = align_telemetry(robust_twin, tel, ["motion.mu", "motor.supply_voltage"])
     for p in r.parameters:
         assert p.identifiable, p.note
         assert p.value == pytest.approx(hidden[p.address], rel=0.05)
         assert p.ci95[0] <= hidden[p.address] <= p.ci95[1], (p.address, p.ci95)
+
+
+def test_a_fit_stopped_on_the_ridge_says_so_and_states_no_interval_that_misses(robust_twin, tmp_path):
+    """Grip 0.7 on a 5.8 V battery: the fit may stop on the ridge where less grip and more volts trade off (it did
+    on 2026-11-26, at μ 0.88, 5.73 V, and said the fit fails); whatever it finds, every interval it states holds
+    the hidden value."""
+    hidden = {"motion.mu": 0.7, "motor.supply_voltage": 5.8}
+    tel = read_telemetry(record(robust_twin, hidden, tmp_path / "run.jsonl"))
+    r = align_telemetry(robust_twin, tel, ["motion.mu", "motor.supply_voltage"])
+    for p in r.parameters:
+        assert p.ci95 is None or p.ci95[0] <= hidden[p.address] <= p.ci95[1], (p.address, p.ci95, p.note)
+        assert p.identifiable or p.ci95 is None
 
 
 def test_a_parameter_the_run_cannot_pin_is_named_with_the_evidence(robust_twin, tmp_path):

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from tuner.search.envelope import Envelope, Risk, held_out_seeds
+from tuner.search.envelope import ROBUST_SEEDS, Envelope, Risk, held_out_seeds
 from tuner.search.gradient import DescentOptions, descend
 from tuner.search.objective import LapObjective, lap_cost
 from tuner.search.space import SearchSpace
@@ -78,7 +78,7 @@ def test_robust_gains_finish_the_whole_envelope_on_held_out_seeds(capsys):
     code = tune.main(["--robust", "--track", "oval", "--max-iter", "3", "--held-out", "6", "--json", "-q"])
     assert code == 0
     s = json.loads(capsys.readouterr().out)
-    assert s["risk"] == "worst" and len(s["envelope"]["scenarios"]) == 4 and len(s["envelope"]["seeds"]) == 3
+    assert s["risk"] == "worst" and len(s["envelope"]["scenarios"]) == 4 and len(s["envelope"]["seeds"]) == ROBUST_SEEDS
     assert len(s["per_iteration"]) == s["iterations"] and all(len(it["scenarios"]) == 4 for it in s["per_iteration"])
     held = s["held_out"]
     assert not set(range(held["seeds"][0], held["seeds"][1] + 1)) & set(s["envelope"]["seeds"])

@@ -60,10 +60,10 @@ def test_one_parameter_sweep_writes_agreeing_csv_json_and_a_chart(tmp_path, caps
 @pytest.mark.quick
 def test_two_parameter_sweep_makes_a_heat_map(tmp_path, capsys):
     """Tyre grip × steering gain on the oval at v_max = 0.6 m/s: the 0.4 m bends need v²/r = 0.9 m/s², under a
-    tenth of the grip μ·g for μ ≥ 0.4, so the tyres never slide and μ leaves the lap unchanged (within 1e-5: the
-    calibration turn's spin creeps a little more on low grip, and one sensor's calibrated maximum, the smallest of
-    a call's ten readings, moves by 1 µs, which moves the lap by 1e-6); a stiffer steering gain holds the line
-    closer."""
+    tenth of the grip μ·g for μ ≥ 0.4, so the tyres never slide and μ leaves the lap nearly unchanged: within 5e-4,
+    because the tyres carry the ball caster's drag (motion.caster_mu) and MuJoCo's soft contacts creep a little more
+    under a force at lower grip (measured 1.3e-4 at K_P 30; 1e-5 with a free caster, from the calibration turn's spin);
+    a stiffer steering gain holds the line closer."""
     out = tmp_path / "map"
     assert main(["sweep", "motion.mu=0.4:0.9:2", "control.kp=10:30:2", "--track", "oval", "--seeds", "1",
                  "--out-dir", str(out), "--json"]) == 0
@@ -72,8 +72,8 @@ def test_two_parameter_sweep_makes_a_heat_map(tmp_path, capsys):
     assert (out / "sweep.png").stat().st_size > 10_000
     (lo_10, lo_30, hi_10, hi_30) = doc["points"]
     assert all(p["completion_rate"] == 1.0 for p in doc["points"])
-    assert lo_10["median_lap_time_s"] == pytest.approx(hi_10["median_lap_time_s"], rel=1e-5)
-    assert lo_30["median_lap_time_s"] == pytest.approx(hi_30["median_lap_time_s"], rel=1e-5)
+    assert lo_10["median_lap_time_s"] == pytest.approx(hi_10["median_lap_time_s"], rel=5e-4)
+    assert lo_30["median_lap_time_s"] == pytest.approx(hi_30["median_lap_time_s"], rel=5e-4)
     assert lo_30["max_cross_track_m"] < lo_10["max_cross_track_m"] and hi_30["max_cross_track_m"] < hi_10["max_cross_track_m"]
     for p in doc["points"]:
         assert p["median_lap_time_s"] >= OVAL_LENGTH_M / 0.6

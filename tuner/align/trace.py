@@ -24,7 +24,9 @@ has a lap event. Each parameter is searched as a ratio to its current value.
    range gives the *consistent set*, every value that fits as well as the best fit given that noise; a
    parameter is identified only where that set is narrow and inside the range, and only then gets a 95 %
    interval (the hull of the set and the local interval from the refits and the Jacobian). Otherwise the
-   result says so and gives the set ("fits as well anywhere in [a, b]").
+   result says so and gives the set ("fits as well anywhere in [a, b]"). Where the scan finds a point that fits
+   far better than the fit's solution (the fit stopped in the wrong basin), steps 2–4 run again from it
+   (``RESTARTS`` times at most); a parameter none of whose scanned values fits as well gets its whole range.
 5. **Wrong basin**: a fit whose traces differ from the run's by more than ``NOISE_FACTOR`` times what two twin
    runs differ by is not the run, and nothing in it is called identified.
 """
@@ -52,6 +54,7 @@ from tuner.search.space import TunerError
 GRID = 5  # grid points per parameter (7 for one or two parameters: GRID_SMALL)
 GRID_SMALL = 7
 STARTS = 3  # Levenberg–Marquardt runs, from the best distinct starting points
+RESTARTS = 1  # fits again from a better point the profile scan found (the first fit stopped in the wrong basin)
 # the residual is noisy at the scale of sensor readings and seeds: a step below 0.01 % is noise, and a damping
 # that adapts by ×4 (not 10^0.1) stops it from spending a lap on every tiny rejected step
 LM_OPTIONS = {"xtol": 1e-4, "gtol": 1e-6, "mu_factor": 4.0}
@@ -190,26 +193,34 @@ def align_telemetry(twin: DigitalTwin, tel: Telemetry, addresses: Sequence[str],
             starts.append(points[:, j])
         if len(starts) == STARTS:
             break
-    runs = [minimize.least_squares(s0, f, bounds=[lo, hi], eps=FD_STEP, max_iter=max_iter, verbose=0, **LM_OPTIONS) for s0 in starts]
-    finals = f(np.column_stack([x for x, _ in runs]))
-    x, log = runs[int(np.argmin(np.sum(finals * finals, axis=0)))]
-    # the Jacobian at the solution: one batch
-    steps = np.where(x + FD_STEP * x <= hi, FD_STEP * x, -FD_STEP * x)
-    R = f(np.column_stack([x, x[:, None] + np.diag(steps)]))
-    r0 = R[:, 0]
-    J = (R[:, 1:] - r0[:, None]) / steps
-    sse = float(r0 @ r0)
-    # 3. other noise seeds at the solution (one batch): how much noise alone moves the misfit
-    noise_seeds = [seed + 1 + j for j in range(NOISE_SEEDS)]
-    Rn = f(np.tile(x[:, None], NOISE_SEEDS), seeds=noise_seeds)
-    noise_sse = np.sum(Rn * Rn, axis=0)
-    noise_spread = float(np.max(np.abs(noise_sse - sse)))
-    # 4. each parameter's consistent set (profile scan over SCAN_SEEDS twin seeds, and its edges) and verdicts,
-    # see tuner.align.uncertainty
-    profiles, floor = profile_scan(lambda X, seeds: np.sum(f(X, seeds=seeds) ** 2, axis=0), x, lo, hi, J,
-                                   np.concatenate([[sse], noise_sse]), noise_spread,
-                                   [seed + j for j in range(SCAN_SEEDS)],
-                                   [seed + j for j in range(SCAN_SEEDS, SCAN_SEEDS + MORE_SEEDS)])
+    for _ in range(1 + RESTARTS):
+        runs = [minimize.least_squares(s0, f, bounds=[lo, hi], eps=FD_STEP, max_iter=max_iter, verbose=0, **LM_OPTIONS)
+                for s0 in starts]
+        finals = f(np.column_stack([x for x, _ in runs]))
+        x, log = runs[int(np.argmin(np.sum(finals * finals, axis=0)))]
+        # the Jacobian at the solution: one batch
+        steps = np.where(x + FD_STEP * x <= hi, FD_STEP * x, -FD_STEP * x)
+        R = f(np.column_stack([x, x[:, None] + np.diag(steps)]))
+        r0 = R[:, 0]
+        J = (R[:, 1:] - r0[:, None]) / steps
+        sse = float(r0 @ r0)
+        # 3. other noise seeds at the solution (one batch): how much noise alone moves the misfit
+        noise_seeds = [seed + 1 + j for j in range(NOISE_SEEDS)]
+        Rn = f(np.tile(x[:, None], NOISE_SEEDS), seeds=noise_seeds)
+        noise_sse = np.sum(Rn * Rn, axis=0)
+        noise_spread = float(np.max(np.abs(noise_sse - sse)))
+        # 4. each parameter's consistent set (profile scan over SCAN_SEEDS twin seeds, and its edges) and verdicts,
+        # see tuner.align.uncertainty
+        scan = profile_scan(lambda X, seeds: np.sum(f(X, seeds=seeds) ** 2, axis=0), x, lo, hi, J,
+                            np.concatenate([[sse], noise_sse]), noise_spread,
+                            [seed + j for j in range(SCAN_SEEDS)],
+                            [seed + j for j in range(SCAN_SEEDS, SCAN_SEEDS + MORE_SEEDS)])
+        if scan.solution_fits:
+            break
+        # the scan found a point fitting far better than the fit's solution: the fit stopped in the wrong basin, so
+        # it starts again from there (and from its solution)
+        starts = [scan.best_point, x]
+    profiles, floor = scan.profiles, scan.floor
     # the refits only matter for an interval: skipped when the scan leaves nothing that could be identified
     pinned = any(p.pinned(x[i], floor) for i, p in enumerate(profiles))
     estimates = np.vstack([x, _refits(f, x, lo, hi, seed, max_iter)]) if pinned else x[None, :]  # (1 + REFITS, n)

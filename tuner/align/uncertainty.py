@@ -109,6 +109,7 @@ class _Values:
     def __init__(self, misfit: Misfit, x, lo, hi, J, seeds: Sequence[int], more_seeds: Sequence[int]):
         self.misfit, self.x, self.lo, self.hi = misfit, x, lo, hi
         self.seeds, self.more_seeds = list(seeds), list(more_seeds)
+        self.best_misfit, self.best_point = math.inf, x  # the least misfit any point tried has, and that point
         n = len(x)
         live = _live(J)
         # per unit of parameter i, the others at their least misfit: −(J_oᵀJ_o)⁻¹J_oᵀJ_i, over the parameters the
@@ -143,6 +144,8 @@ class _Values:
             S = self.misfit(np.repeat(np.column_stack(cols), len(seeds), axis=1), [s for _ in cols for s in seeds])
             who = np.repeat(np.array(owner, dtype=int), len(seeds))
             np.minimum.at(least, who, S)
+            if float(S.min()) < self.best_misfit:
+                self.best_misfit, self.best_point = float(S.min()), cols[int(np.argmin(S)) // len(seeds)]
             np.maximum.at(most, who, S)
         return least, most
 
@@ -161,13 +164,26 @@ class _Values:
         return least
 
 
+@dataclasses.dataclass(frozen=True)
+class Scan:
+    """What :func:`profile_scan` found: each parameter's profile, the floor below which a misfit fits as well as
+    the best fit, and the point (ratios) with the least misfit tried, which lies below the floor only when the
+    solution it scanned around is not among the best fits (a fit stopped in the wrong basin)."""
+
+    profiles: list[Profile]
+    floor: float
+    solution_fits: bool  # the solution scanned around fits as well as the best point tried
+    best_point: np.ndarray
+
+
 def profile_scan(misfit: Misfit, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, J: np.ndarray,
                  at_solution: np.ndarray, noise_spread: float, seeds: Sequence[int],
-                 more_seeds: Sequence[int]) -> tuple[list[Profile], float]:
+                 more_seeds: Sequence[int]) -> Scan:
     """Each parameter's consistent set (module docstring, 2.). ``misfit(X, seeds)`` maps points (n, k) of ratios and
     one noise seed each to their k misfits; ``at_solution``: the misfits at the solution ``x`` over the twin's
     seeds, its own first; ``seeds`` for every value, ``more_seeds`` where those disagree (:meth:`_Values.settle`).
-    Returns the profiles and the floor below which a value fits as well."""
+    A parameter none of whose values tried fits as well (another's scan found a far better point) gets the whole
+    search range as its set: nothing is known of it until the fit starts from that point."""
     n = len(x)
     sse = float(at_solution[0])
     values = _Values(misfit, x, lo, hi, J, seeds, more_seeds)
@@ -196,6 +212,8 @@ def profile_scan(misfit: Misfit, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, 
         """[inner, outer] at each end of parameter i's set, None where the set reaches the bound."""
         vs = sorted(tried[i])
         ok = [k for k, (_, s) in enumerate(vs) if s <= floor]
+        if not ok:
+            return [None, None]
         a, b = ok[0], ok[-1]
         return [None if a == 0 else [vs[a][0], vs[a - 1][0]], None if b == len(vs) - 1 else [vs[b][0], vs[b + 1][0]]]
 
@@ -212,12 +230,12 @@ def profile_scan(misfit: Misfit, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, 
     profiles = []
     for i in range(n):
         vs = sorted(tried[i])
-        good = [v for v, s in vs if s <= floor]
+        good = [v for v, s in vs if s <= floor] or [lo[i], hi[i]]
         lower, upper = ends[i]
         profiles.append(Profile(np.array([v for v, _ in vs]), np.array([s for _, s in vs]), (good[0], good[-1]),
                                 (lo[i] if lower is None else lower[1], hi[i] if upper is None else upper[1]),
                                 (lower is None, upper is None)))
-    return profiles, floor
+    return Scan(profiles, floor, here <= floor, np.array(values.best_point, dtype=float))
 
 
 def _live(J: np.ndarray) -> np.ndarray:

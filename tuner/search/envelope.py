@@ -35,7 +35,7 @@ import numpy as np
 from twin.errors import TwinError
 
 ROBUST_AXES: dict[str, tuple[float, ...]] = {"motion.mu": (0.6, 0.9), "motor.supply_voltage": (4.8, 6.0)}
-ROBUST_SEEDS = 3
+ROBUST_SEEDS = 8
 ROBUST_RISK = "worst"
 HELD_OUT_OFFSET = 1000  # held-out seeds start this far above the tuning seeds
 

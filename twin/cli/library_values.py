@@ -17,7 +17,7 @@ DIAGNOSE_CANDIDATES = ("motion.mu", "motor.supply_voltage", "motor.R_M", "cad.m_
 DESIGN_GRID = {"cad.L": (0.035, 0.045, 0.055), "cad.S": (0.04, 0.06, 0.08)}  # tuner.studies.design.DEFAULT_GRID
 
 ROBUST_AXES = {"motion.mu": (0.6, 0.9), "motor.supply_voltage": (4.8, 6.0)}  # tuner.search.envelope.ROBUST_AXES
-ROBUST_SEEDS = 3  # tuner.search.envelope.ROBUST_SEEDS
+ROBUST_SEEDS = 8  # tuner.search.envelope.ROBUST_SEEDS
 ROBUST_RISK = "worst"  # tuner.search.envelope.ROBUST_RISK
 
 SENSITIVITY_SAMPLES = 256  # tuner.sensitivity.laps.SAMPLES
