@@ -30,7 +30,10 @@ def twin():
 
 @pytest.fixture(scope="module")
 def lap(twin):
-    return run_laps(twin, [{}], seed=3)[0]
+    """The firmware's own lap, its compute timed as an outside controller's is: one time (timing.compute) whatever
+    path the control law takes (the firmware's own laps time each path as the MCU does: twin.model.timing)."""
+    general_us = twin.space.get("timing.compute")
+    return run_laps(twin, [{"timing.compute_centred": general_us, "timing.compute_lost": general_us}], seed=3)[0]
 
 
 @pytest.fixture(scope="module")

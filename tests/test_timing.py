@@ -24,7 +24,12 @@ from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.model.control import RUN
 from twin.model.power import Power
-from twin.model.timing import COMPUTE_US, RELEASE_US, Timing, applied_voltages
+from twin.model.timing import (COMPUTE_CALIBRATE_US, COMPUTE_CENTRED_US, COMPUTE_LOST_US, COMPUTE_US, RELEASE_US, Timing,
+                               applied_voltages, compute_path)
+
+# each code path's compute, at its default and as the MCU's laps below show it
+PATH_DEFAULTS_US = {"general": COMPUTE_US, "centred": COMPUTE_CENTRED_US, "lost": COMPUTE_LOST_US,
+                    "calibrate": COMPUTE_CALIBRATE_US}
 
 
 @pytest.mark.quick
@@ -45,12 +50,19 @@ def test_bad_timing_is_refused_naming_its_address(field, value):
         Timing(**{field: value})
 
 
+def record_paths(records: np.ndarray) -> list[str]:
+    """Each tick's compute path, from its trace record (the firmware's mode, whether it saw the line, its bearing)."""
+    col = {name: core.RECORD_FIELDS.index(name) for name in ("mode", "line_seen", "e_rad")}
+    return [compute_path(int(r[col["mode"]]), bool(r[col["line_seen"]]), float(r[col["e_rad"]])) for r in records]
+
+
 def reference_voltages(records: np.ndarray, timing: Timing, supply_v: float, step_s: float, steps: int) -> np.ndarray:
     """The reference's voltages from the ticks' own trace records: their times, the duties they commanded, their
-    slowest line's reading."""
+    slowest line's reading, their compute path."""
     u = records[:, [core.RECORD_FIELDS.index("u_left_v"), core.RECORD_FIELDS.index("u_right_v")]]
     return applied_voltages(records[:, core.RECORD_FIELDS.index("time_s")], u / supply_v,
-                            records[:, core.RAW_COLUMN:core.RAW_COLUMN + 8].max(axis=1), timing, supply_v, step_s, steps)
+                            records[:, core.RAW_COLUMN:core.RAW_COLUMN + 8].max(axis=1), timing, supply_v, step_s, steps,
+                            record_paths(records))
 
 
 @pytest.mark.quick
@@ -60,7 +72,9 @@ def test_each_physics_step_drives_the_duties_the_robot_would_have_written():
     core.install_callback()
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key(START_KEY).id)
-    timing = Timing(release_us=22.0, compute_us=1500.0)
+    # every path its own time, far apart, so a tick taking another path's shows
+    timing = Timing(release_us=22.0, compute_us=1500.0, compute_centred_us=900.0, compute_lost_us=2300.0,
+                    compute_calibrate_us=400.0)
     params = twin.control_params()
     supply = twin.physics().supply_voltage  # a stiff supply: the power path has its own test (tests/test_power.py)
     sim = setup(data.userdata, model, twin, params, twin.sensor_model(), 3, timing=timing,
@@ -75,6 +89,7 @@ def test_each_physics_step_drives_the_duties_the_robot_would_have_written():
         seen.append((data.ctrl[left], data.ctrl[right]))
     records = core.records_since(data.userdata, sim, 0)
     assert len(records) == steps // 5
+    assert {"general", "centred"} <= set(record_paths(records))  # the start line is read at the centre, then off it
     expected = reference_voltages(records, timing, supply, model.opt.timestep, steps)
     seen = np.array(seen)
     assert np.abs(np.diff(seen, axis=0)).max() > 0.05  # the duties change: the test can tell blends apart
@@ -85,16 +100,27 @@ def test_each_physics_step_drives_the_duties_the_robot_would_have_written():
                                                      core.RECORD_FIELDS.index("u_right_v")]])
 
 
-def test_the_defaults_are_what_the_mcu_measures(pil_ready):
+@pytest.mark.parametrize("track, seed", [("default", 0), ("chicane", 4)])
+def test_the_defaults_are_what_the_mcu_measures(pil_ready, plain_gains, track, seed):
+    from reference_gains import tuned_gains
     from twin.pil.lap import run_pil_lap
 
-    result, report = run_pil_lap(DigitalTwin(), seed=0)
+    twin = DigitalTwin(track=track)
+    # the default track with its default gains (the defaults' own laps: seed 0); the chicane with the gains tuned
+    # for it, a lap that loses the line, on a seed the defaults were not measured on
+    for address, value in ({} if track == "default" else tuned_gains("--track", track)).items():
+        twin.set(address, value)
+    result, report = run_pil_lap(twin, seed=seed)
     assert result.completed and report.timed_ticks >= result.lap_time_s / 0.005 - 2
-    # the firmware's code paths and the interrupts that fall into them move each tick's compute by ±0.4 ms; the mean
-    # is what the C loop takes
     assert report.release_mean_us == pytest.approx(RELEASE_US, abs=3.0)
-    assert report.compute_mean_us == pytest.approx(COMPUTE_US, rel=0.03)
+    # the interrupts that fall into a tick's compute scatter it by ~55 µs; each code path's mean is what the C loop
+    # takes for it (1.5 %: the general path's laps spread 1241–1258 µs), and the paths differ by more than that
     assert report.compute_min_us < report.compute_mean_us < report.compute_max_us
+    assert {"general", "centred", "calibrate"} <= set(report.compute_path_mean_us)
+    if track == "chicane":
+        assert report.compute_path_ticks["lost"] > 10
+    for path, mean_us in report.compute_path_mean_us.items():
+        assert mean_us == pytest.approx(PATH_DEFAULTS_US[path], rel=0.015), path
 
 
 def test_the_c_loop_laps_as_the_firmware_on_the_mcu_for_tuned_gains(pil_ready, plain_gains):
@@ -116,6 +142,7 @@ def test_the_c_loop_laps_as_the_firmware_on_the_mcu_for_tuned_gains(pil_ready, p
     assert abs(np.mean(mcu / c - 1)) <= 0.002
     assert np.all(np.abs(mcu / c - 1) <= max(0.004, np.ptp(c) / c.min()))
     # without the firmware's share (no compute time, any duty) the C loop is measurably further from the MCU
-    instant = run_laps(twin, [{"timing.release": 0, "timing.compute": 0, "timing.pwm_counts": 0}] * 3, seed=seeds,
-                       keep_traces=False)
+    instant = run_laps(twin, [{"timing.release": 0, "timing.compute": 0, "timing.compute_centred": 0,
+                               "timing.compute_lost": 0, "timing.compute_calibrate": 0, "timing.pwm_counts": 0}] * 3,
+                       seed=seeds, keep_traces=False)
     assert abs(np.mean(mcu / [lap.lap_time_s for lap in instant] - 1)) > 0.002

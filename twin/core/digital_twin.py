@@ -183,7 +183,9 @@ class DigitalTwin:
     def timing(self, values: Mapping[str, float] | None = None) -> Timing:
         """The robot's timing of the twin's values, or of ``values`` (every address)."""
         v = self._values("timing", values)
-        return Timing(release_us=v["release"], compute_us=v["compute"], pwm_counts=int(v["pwm_counts"]))
+        return Timing(release_us=v["release"], compute_us=v["compute"], compute_centred_us=v["compute_centred"],
+                      compute_lost_us=v["compute_lost"], compute_calibrate_us=v["compute_calibrate"],
+                      pwm_counts=int(v["pwm_counts"]))
 
     def power(self, values: Mapping[str, float] | None = None) -> Power:
         """The motor driver's supply of the twin's values, or of ``values`` (every address)."""

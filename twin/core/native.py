@@ -27,7 +27,7 @@ from twin.core.outcomes import REFUSALS, c_names
 from twin.errors import TwinError
 
 MAGIC = 1279676025.0
-LAYOUT_VERSION = 10
+LAYOUT_VERSION = 11
 # the model sizes a head is written for, in the order of model_signature() in mujoco_glue.c
 SIGNATURE = ("nbody", "nsite", "ntex", "ntexdata", "nu", "na", "nv", "nnumericdata")
 
@@ -106,7 +106,8 @@ CALIBRATED_COLUMN = RAW_COLUMN + MAX_SENSORS
 class TimingC(ctypes.Structure):
     """``lf_timing``: see :class:`twin.model.timing.Timing`."""
 
-    _fields_ = [("release_us", c_double), ("compute_us", c_double), ("pwm_counts", c_double)]
+    _fields_ = [("release_us", c_double), ("compute_us", c_double), ("compute_centred_us", c_double),
+                ("compute_lost_us", c_double), ("compute_calibrate_us", c_double), ("pwm_counts", c_double)]
 
 
 class PowerC(ctypes.Structure):
@@ -392,7 +393,7 @@ def params_to_c(p) -> Params:
 
 def timing_to_c(t) -> TimingC:
     """A :class:`twin.model.timing.Timing` as ``lf_timing``."""
-    return TimingC(release_us=t.release_us, compute_us=t.compute_us, pwm_counts=t.pwm_counts)
+    return TimingC(**{name: getattr(t, name) for name, _ in TimingC._fields_})
 
 
 def power_to_c(p) -> PowerC:

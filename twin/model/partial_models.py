@@ -184,7 +184,14 @@ def timing_model() -> PartialModel:
             Parameter("release", "µs", t.release_us, 0.0, 5000.0, C, "control tick to the QTR-RC lines' release "
                       "(measured on the emulated ATmega328P)"),
             Parameter("compute", "µs", t.compute_us, 0.0, 50000.0, C, "end of the sensor read to the PWM write: "
-                      "the firmware's compute time (measured on the emulated ATmega328P)"),
+                      "the firmware's compute time on its general path, the line seen off centre, and an external "
+                      "controller's (measured on the emulated ATmega328P)"),
+            Parameter("compute_centred", "µs", t.compute_centred_us, 0.0, 50000.0, C, "the compute time when the "
+                      "line reads exactly at the centre, e = 0 (measured on the emulated ATmega328P)"),
+            Parameter("compute_lost", "µs", t.compute_lost_us, 0.0, 50000.0, C, "the compute time when the line is "
+                      "lost (measured on the emulated ATmega328P)"),
+            Parameter("compute_calibrate", "µs", t.compute_calibrate_us, 0.0, 50000.0, C, "the compute time of a "
+                      "calibration tick, after its ten reads (measured on the emulated ATmega328P)"),
             Parameter("pwm_counts", "-", t.pwm_counts, 0, 65536, C, "motor PWM period in timer counts: duties are "
                       "whole counts, full drive one count short (3pi: 256); 0: any duty", integer=True),
         ),

@@ -22,13 +22,23 @@ import math
 import numpy as np
 
 from twin.errors import TwinError
+from twin.model.control import RUN
 
-# Measured: the twin's firmware (twin/csrc/firmware/avr) on the emulated ATmega328P, default robot and track, seed 0,
-# default and plainly tuned gains (`python -m twin.run lap --firmware avr --json`, fields mcu.release_mean_us and
-# mcu.compute_mean_us): release 21.8–21.9 µs (max 35.7), compute 1218–1234 µs (min 1015, max 1780: the code path of
-# lf_step and the interrupts that fall in it). tests/test_timing.py measures them again against these defaults.
+# Measured: the twin's firmware (twin/csrc/firmware/avr) on the emulated ATmega328P, seed 0, default gains on the
+# default, oval and circle tracks and plainly tuned gains on the default track and the chicane (`python -m twin.run
+# lap --firmware avr --json`, fields mcu.release_mean_us and mcu.compute_path_mean_us): release 21.8–21.9 µs (max
+# 35.7); compute by code path (lf_step's branches; the interrupts that fall in it scatter each tick by ~55 µs):
+# general 1241–1258 µs (6787 ticks, mean 1247.5), centred 1096–1131 µs (1715 ticks, mean 1100), lost 1114 µs (78
+# ticks, the chicane: the only lap that lost the line), calibrate 950–964 µs (5 laps). One constant for all paths
+# (1225 µs, the laps' overall mean) left the C loop's lap 0.215 % longer than the MCU's on the chicane with plainly
+# tuned gains, whose laps take the paths in other shares (docs/models.md, "The robot's timing"). tests/test_timing.py measures them again against these defaults.
 RELEASE_US = 22.0
-COMPUTE_US = 1225.0
+COMPUTE_US = 1248.0
+COMPUTE_CENTRED_US = 1100.0
+COMPUTE_LOST_US = 1115.0
+COMPUTE_CALIBRATE_US = 955.0
+# The compute's code paths, in the order of enum lf_compute_path (twin/csrc/sim/twin_core.h).
+COMPUTE_PATHS = ("general", "centred", "lost", "calibrate")
 PWM_COUNTS = 256  # the 3pi's motor PWM: Timers 0 and 2, 8 bits (twin/csrc/firmware/avr/motors.c)
 
 
@@ -38,13 +48,20 @@ class Timing:
 
     Attributes:
       release_us: from the control tick to the sensor lines' release, in [µs].
-      compute_us: from the read's end (the last line's fall, or the timeout) to the PWM write, in [µs].
+      compute_us: from the read's end (the last line's fall, or the timeout) to the PWM write, in [µs], on the
+        compute's general path: the line seen off centre (and an external controller's every tick).
+      compute_centred_us: the same when the line reads exactly at the centre (e = 0) [µs].
+      compute_lost_us: the same when the line is lost [µs].
+      compute_calibrate_us: the same in a calibration tick [µs].
       pwm_counts: the motor PWM's period in timer counts: a duty is driven as the nearest whole count, at most one
         short of the period (full drive is 255/256 on the 3pi); 0 drives any duty as it is.
     """
 
     release_us: float = RELEASE_US
     compute_us: float = COMPUTE_US
+    compute_centred_us: float = COMPUTE_CENTRED_US
+    compute_lost_us: float = COMPUTE_LOST_US
+    compute_calibrate_us: float = COMPUTE_CALIBRATE_US
     pwm_counts: int = PWM_COUNTS
 
     def __post_init__(self) -> None:
@@ -61,17 +78,32 @@ class Timing:
         counts = min(math.floor(abs(duty) * self.pwm_counts + 0.5), self.pwm_counts - 1)
         return math.copysign(counts / self.pwm_counts, duty)
 
-    def reaction_s(self, read_us: float) -> float:
-        """Seconds from a tick to its duties taking effect, for a read lasting ``read_us`` [µs]."""
-        return (self.release_us + read_us + self.compute_us) * 1e-6
+    def compute_time_us(self, path: str) -> float:
+        """The compute's time [µs] on code ``path`` (one of :data:`COMPUTE_PATHS`)."""
+        return getattr(self, "compute_us" if path == "general" else f"compute_{path}_us")
+
+    def reaction_s(self, read_us: float, path: str = "general") -> float:
+        """Seconds from a tick to its duties taking effect, for a read lasting ``read_us`` [µs] and a compute on code
+        ``path``."""
+        return (self.release_us + read_us + self.compute_time_us(path)) * 1e-6
+
+
+def compute_path(mode: int, line_seen: bool, e_rad: float) -> str:
+    """The code path of a tick whose firmware ran in ``mode`` (twin.model.control's IDLE, CALIBRATE, RUN), saw the
+    line or not, and read bearing ``e_rad``: reference of lf_compute_path (twin/csrc/sim/twin_core.h)."""
+    if mode != RUN:
+        return "calibrate"
+    if not line_seen:
+        return "lost"
+    return "centred" if e_rad == 0 else "general"
 
 
 def applied_voltages(tick_s: np.ndarray, duty: np.ndarray, read_us: np.ndarray, timing: Timing, supply_v: float,
-                     step_s: float, steps: int) -> np.ndarray:
+                     step_s: float, steps: int, paths: list[str] | None = None) -> np.ndarray:
     """The motor voltages [V] of each of ``steps`` physics steps from time 0, shape (steps, 2): the Python reference
     of the C loop's rule (decide, drive in mujoco_glue.c). Tick k at ``tick_s[k]`` [s] (on a step) decided
-    ``duty[k]`` (left, right in [-1, 1]) from a read lasting ``read_us[k]`` [µs]; its duties take effect
-    :meth:`Timing.reaction_s` after it, and over the step they arrive in the voltage is the mean of the old and the
+    ``duty[k]`` (left, right in [-1, 1]) from a read lasting ``read_us[k]`` [µs] and a compute on code path
+    ``paths[k]`` (default: all general); its duties take effect :meth:`Timing.reaction_s` after it, and over the step they arrive in the voltage is the mean of the old and the
     new, weighted by the time each is in force; a tick takes a duty still waiting."""
     applied = np.zeros((steps, 2))
     now, pending, due, k = np.zeros(2), None, math.inf, 0
@@ -81,7 +113,7 @@ def applied_voltages(tick_s: np.ndarray, duty: np.ndarray, read_us: np.ndarray, 
             if pending is not None:
                 now = pending
             pending = np.array([timing.pwm_duty(float(d)) for d in duty[k]])
-            due = t + timing.reaction_s(float(read_us[k]))
+            due = t + timing.reaction_s(float(read_us[k]), paths[k] if paths is not None else "general")
             k += 1
         if pending is not None and due < t + step_s:
             old = max(0.0, (due - t) / step_s)

@@ -23,6 +23,7 @@ from twin.core import native as core
 from twin.core.calibration import range_too_small, turn_too_long
 from twin.core.closed_loop import check_seed, setup
 from twin.model.control import CALIBRATE, IDLE, RUN
+from twin.model.timing import COMPUTE_PATHS
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapJudge, LapLimits, LapResult
 from twin.core.maze import refuse_maze
@@ -67,6 +68,8 @@ class McuReport:
     compute_min_us: float
     compute_max_us: float
     timed_ticks: int  # ticks whose reaction was timed (twin/csrc/pil/avr_timing.c)
+    compute_path_mean_us: dict  # compute's mean per code path that was timed (twin.model.timing.COMPUTE_PATHS)
+    compute_path_ticks: dict  # timed ticks per code path
     telemetry_lines: int
     telemetry_bad_lines: int
     telemetry_dropped_lines: int
@@ -165,7 +168,10 @@ def _reaction_us(status) -> dict[str, float | int]:
     mean = (lambda total: float(total) * us / n) if n else (lambda total: 0.0)
     return dict(release_mean_us=mean(status.release_cycles_sum), release_max_us=float(status.release_cycles_max) * us,
                 compute_mean_us=mean(status.compute_cycles_sum), compute_min_us=float(status.compute_cycles_min) * us,
-                compute_max_us=float(status.compute_cycles_max) * us, timed_ticks=n)
+                compute_max_us=float(status.compute_cycles_max) * us, timed_ticks=n,
+                compute_path_mean_us={path: float(status.compute_path_cycles_sum[i]) * us / status.compute_path_ticks[i]
+                                      for i, path in enumerate(COMPUTE_PATHS) if status.compute_path_ticks[i]},
+                compute_path_ticks={path: int(status.compute_path_ticks[i]) for i, path in enumerate(COMPUTE_PATHS)})
 
 
 def place_robot(model: mujoco.MjModel, data: mujoco.MjData, twin: DigitalTwin, lap: Variant, seed: int) -> core.Sim:

@@ -17,6 +17,7 @@ import ctypes
 from ctypes import c_double, c_int32, c_int64, c_uint8, c_uint32, c_uint64
 
 from twin.core import native as core
+from twin.model.timing import COMPUTE_PATHS
 from twin.pil.firmware import CONFIG_BYTES, config_layout
 
 LIBRARY = "twin.pil._lfavr"
@@ -29,7 +30,9 @@ class McuStatus(ctypes.Structure):
                 ("busy_ticks", c_int64), ("uart_lost", c_int64), ("read_error_max_us", c_double),
                 ("read_error_sum_us", c_double), ("read_errors", c_int64), ("awake", c_uint64),
                 ("release_cycles_sum", c_uint64), ("release_cycles_max", c_uint64), ("compute_cycles_sum", c_uint64),
-                ("compute_cycles_max", c_uint64), ("compute_cycles_min", c_uint64), ("timed_ticks", c_int64)]
+                ("compute_cycles_max", c_uint64), ("compute_cycles_min", c_uint64), ("timed_ticks", c_int64),
+                ("compute_path_cycles_sum", c_uint64 * len(COMPUTE_PATHS)),
+                ("compute_path_ticks", c_int64 * len(COMPUTE_PATHS))]
 
 
 class LcdFrame(ctypes.Structure):

@@ -60,6 +60,9 @@ static void set_timing(lf_timing *t, int32_t what, double v) {
   switch (what) {
     case LF_P_TIMING_RELEASE: t->release_us = v; break;
     case LF_P_TIMING_COMPUTE: t->compute_us = v; break;
+    case LF_P_TIMING_COMPUTE_CENTRED: t->compute_centred_us = v; break;
+    case LF_P_TIMING_COMPUTE_LOST: t->compute_lost_us = v; break;
+    case LF_P_TIMING_COMPUTE_CALIBRATE: t->compute_calibrate_us = v; break;
     case LF_P_TIMING_PWM_COUNTS: t->pwm_counts = v; break;
     default: break;
   }

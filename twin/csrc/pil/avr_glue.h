@@ -91,6 +91,9 @@ typedef struct {
   uint64_t release_cycles_sum, release_cycles_max; /* tick to the sensor lines' release */
   uint64_t compute_cycles_sum, compute_cycles_max, compute_cycles_min; /* the read's end to the first PWM write */
   int64_t timed_ticks;
+  /* the same compute split by the code path the tick took (enum lf_compute_path, twin_core.h): cycles, ticks */
+  uint64_t compute_path_cycles_sum[LF_COMPUTE_PATHS];
+  int64_t compute_path_ticks[LF_COMPUTE_PATHS];
 } lf_avr_status;
 
 /* One screen of the LCD, taken when the program had not written to it for LCD_QUIET_S (Python: twin.pil.board). */

@@ -57,6 +57,7 @@ static const lf_field fields[] = {
   LF_FIELD(lf_avr_status, release_cycles_sum), LF_FIELD(lf_avr_status, release_cycles_max),
   LF_FIELD(lf_avr_status, compute_cycles_sum), LF_FIELD(lf_avr_status, compute_cycles_max),
   LF_FIELD(lf_avr_status, compute_cycles_min), LF_FIELD(lf_avr_status, timed_ticks),
+  LF_FIELD(lf_avr_status, compute_path_cycles_sum), LF_FIELD(lf_avr_status, compute_path_ticks),
 
   WHOLE("lf_lcd_frame", lf_lcd_frame),
   LF_FIELD(lf_lcd_frame, cycle), LF_FIELD(lf_lcd_frame, text), LF_FIELD(lf_lcd_frame, cgram), LF_FIELD(lf_lcd_frame, on),

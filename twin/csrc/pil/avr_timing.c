@@ -1,7 +1,8 @@
 /* The robot's reaction time, as the twin's own firmware shows it on the MCU: per control tick, the cycles from the
  * tick (Timer1's compare A interrupt raised) to the release of the sensor lines (the readings' instant), and from the
- * end of the read (the last line's fall, or the timeout) to the first motor compare write (the new duties). The C
- * loop's timing model (timing.release, timing.compute: twin/csrc/sim/mujoco_glue.c) takes its defaults from these. A
+ * end of the read (the last line's fall, or the timeout) to the first motor compare write (the new duties), the
+ * latter also per code path the tick took (lf_compute_path). The C loop's timing model (timing.release,
+ * timing.compute*: twin/csrc/sim/mujoco_glue.c) takes its defaults from these. A
  * tick is counted only when all three events came in that order within it; any other program's ticks are ignored. */
 #include <simavr/sim_interrupts.h>
 
@@ -39,6 +40,8 @@ void pil_timing_release(lf_avr *a, double read_us) {
 void pil_timing_written(lf_avr *a) {
   lf_avr_status *st = &a->status;
   uint64_t release, compute;
+  lf_state fw;
+  int32_t path;
   if (a->timing_phase != WAIT_WRITE || a->avr->cycle < a->timing_read_end) return;
   a->timing_phase = WAIT_TICK;
   release = a->timing_release - a->timing_tick;
@@ -49,4 +52,10 @@ void pil_timing_written(lf_avr *a) {
   if (compute > st->compute_cycles_max) st->compute_cycles_max = compute;
   if (!st->timed_ticks || compute < st->compute_cycles_min) st->compute_cycles_min = compute;
   st->timed_ticks++;
+  /* the tick's code path, from the state it just computed (lf_step has run when the duties are written) */
+  if (lf_avr_state(a, &fw) == 0) {
+    path = lf_compute_path(&fw);
+    st->compute_path_cycles_sum[path] += compute;
+    st->compute_path_ticks[path]++;
+  }
 }

@@ -26,7 +26,8 @@ int32_t lf_external_step(const mjModel *m, mjData *d, lf_sim *s, double *height0
 
 void lf_external_command(const mjModel *m, const mjData *d, lf_sim *s, double u_left_v, double u_right_v,
                          double height0) {
-  lf_decide(d, s, u_left_v / s->supply_voltage, u_right_v / s->supply_voltage, lf_read_time_us(s, 1));
+  lf_decide(d, s, u_left_v / s->supply_voltage, u_right_v / s->supply_voltage, lf_read_time_us(s, 1),
+            s->timing.compute_us); /* the controller's own compute: the general path's time */
   s->ticks++;
   if (s->fw.tick < LF_TICKS_MAX) s->fw.tick++;
   lf_write_record(m, d, s, s->fw.mode, height0, u_left_v, u_right_v);

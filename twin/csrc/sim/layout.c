@@ -27,7 +27,8 @@ static const lf_field fields[] = {
   LF_FIELD(lf_power, battery_v), LF_FIELD(lf_power, source_ohm), LF_FIELD(lf_power, regulator_v),
   LF_FIELD(lf_power, regulator_min_input_v),
 
-  LF_FIELD(lf_timing, release_us), LF_FIELD(lf_timing, compute_us), LF_FIELD(lf_timing, pwm_counts),
+  LF_FIELD(lf_timing, release_us), LF_FIELD(lf_timing, compute_us), LF_FIELD(lf_timing, compute_centred_us),
+  LF_FIELD(lf_timing, compute_lost_us), LF_FIELD(lf_timing, compute_calibrate_us), LF_FIELD(lf_timing, pwm_counts),
 
   LF_FIELD(lf_lap_limits, max_cross_track_m), LF_FIELD(lf_lap_limits, max_progress_jump_m),
   LF_FIELD(lf_lap_limits, max_line_lost_s), LF_FIELD(lf_lap_limits, timeout_s),

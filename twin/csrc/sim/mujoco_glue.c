@@ -305,6 +305,16 @@ double lf_read_time_us(const lf_sim *s, int32_t reads) {
   return reads * longest;
 }
 
+/* The firmware's compute time [us] for the code path its last lf_step took (enum lf_compute_path). */
+double lf_compute_time_us(const lf_sim *s) {
+  switch (lf_compute_path(&s->fw)) {
+    case LF_PATH_CENTRED: return s->timing.compute_centred_us;
+    case LF_PATH_LOST: return s->timing.compute_lost_us;
+    case LF_PATH_CALIBRATE: return s->timing.compute_calibrate_us;
+    default: return s->timing.compute_us;
+  }
+}
+
 /* A duty as the PWM drives it: the nearest whole count of the period, at most one short of it (the robot's motors.c
  * writes OCR = 256 |duty| + 0.5, up to 255, and the timer drives OCR counts of 256). */
 static double pwm_duty(const lf_timing *t, double duty) {
@@ -317,11 +327,11 @@ static double pwm_duty(const lf_timing *t, double duty) {
 
 /* The duties a tick decided wait until the robot would write them: the tick, the release, the read, the compute. A
  * duty still waiting when the next tick comes is taken first (the MCU finishes a tick before it starts the next). */
-void lf_decide(const mjData *d, lf_sim *s, double duty_left, double duty_right, double read_us) {
+void lf_decide(const mjData *d, lf_sim *s, double duty_left, double duty_right, double read_us, double compute_us) {
   if (s->pending) s->duty_now[0] = s->duty_next[0], s->duty_now[1] = s->duty_next[1];
   s->duty_next[0] = pwm_duty(&s->timing, duty_left);
   s->duty_next[1] = pwm_duty(&s->timing, duty_right);
-  s->apply_time_s = d->time + (s->timing.release_us + read_us + s->timing.compute_us) * 1e-6;
+  s->apply_time_s = d->time + (s->timing.release_us + read_us + compute_us) * 1e-6;
   s->pending = 1;
 }
 
@@ -399,7 +409,7 @@ void lf_loop(const mjModel *m, mjData *d, lf_sim *s) {
     reads = s->fw.mode == LF_CALIBRATE ? LF_CAL_READS : 1;
     height0 = read_sensors(m, d, s, reads, s->timing.release_us * 1e-6, tan_half);
     lf_step(&s->fw, &s->firmware, s->raw);
-    lf_decide(d, s, s->fw.duty_left, s->fw.duty_right, lf_read_time_us(s, reads));
+    lf_decide(d, s, s->fw.duty_left, s->fw.duty_right, lf_read_time_us(s, reads), lf_compute_time_us(s));
     s->ticks++;
     /* the record keeps the voltages the firmware commands; the motors take them when drive() says */
     lf_write_record(m, d, s, mode, height0, s->fw.duty_left * s->supply_voltage, s->fw.duty_right * s->supply_voltage);
