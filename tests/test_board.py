@@ -334,7 +334,9 @@ def test_a_design_study_races_a_3pi_program_on_each_design_as_lap_does(build, tm
 def test_emulate_paces_a_program_that_sends_nothing_at_its_speed(build):
     """emulate --firmware PROGRAM streams at --speed times real time from power-up: a program that sends no line
     (the gate's LAP line is all there is) still takes the lap's simulated time / speed to report it, not just the
-    time its simulation took."""
+    time its simulation took. How fast the board runs is bench_pil.py's row, not this test's: the lap may come later
+    than its pace only by what the emulator's own CPU time says it could not keep up with (on the slowest machine
+    this ran on, a third as fast per core as the first and beside other tests, the board ran at ~0.6× real time)."""
     import json
     import socket
     import time
@@ -352,13 +354,18 @@ def test_emulate_paces_a_program_that_sends_nothing_at_its_speed(build):
                 assert chunk, received
                 received += chunk
         waited = time.monotonic() - t0
+        with open(f"/proc/{emu.pid}/stat") as f:  # its CPU time so far: utime, stime (fields 14, 15) in ticks
+            fields = f.read().rsplit(")", 1)[1].split()
+        cpu_s = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
         assert emu.wait(timeout=60) == 0
     finally:
         emu.kill()
     gate = received.decode().strip().splitlines()[-1]  # $LFE,<ms since power-up>,LAP,<lap ms>*checksum
     simulated_s = int(gate.split(",")[1]) / 1000
     assert ",LAP," in gate and simulated_s > 8.0  # calibration, presses and a lap: several seconds to pace
-    assert simulated_s / 2 * 0.95 <= waited <= simulated_s / 2 + 5.0, (waited, gate)
+    assert simulated_s / 2 * 0.95 <= waited, (waited, gate)  # paced: not sooner than its time at --speed 2
+    # and no later than its pace, or its own work where that took longer (twice that: the machine is shared)
+    assert waited <= 2 * max(simulated_s / 2, cpu_s) + 5.0, (waited, cpu_s, gate)
 
 
 def test_bad_programs_and_inputs_are_one_line_and_exit_2(build, tmp_path):
