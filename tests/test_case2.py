@@ -40,9 +40,12 @@ def test_lap_time_alignment_recovers_grip_on_another_seed(robust_twin, mu):
     measured = run_laps(robust_twin, [{"motion.mu": mu}], seed=ROBOT_SEED)[0]
     assert measured.completed
     r = align_lap_time(robust_twin, measured.lap_time_s)
-    assert r.explained and r.value == pytest.approx(mu, rel=0.01)  # docs/models.md: within 1 % (measured 0.05-0.4 %)
+    assert r.explained and r.value == pytest.approx(mu, rel=0.01)  # docs/models.md: within 1 % (measured 0.05-0.8 %)
     best = r.solutions[0]
-    assert best.consistent[0] <= mu <= best.consistent[1] and (best.ci95 is None or best.ci95[0] <= mu <= best.ci95[1])
+    # the values consistent with the lap hold the hidden one; the 95 % interval, where one is given, misses one robot
+    # in twenty, so whether it holds a single robot's value is not asserted here: the coverage studies below count
+    # it over 40 robots (on 2026-11-28 this robot's at μ 0.7 was 0.6871–0.6998, with the consistent set 0.685–0.709)
+    assert best.consistent[0] <= mu <= best.consistent[1]
     assert r.simulated_lap_time_s == pytest.approx(measured.lap_time_s, rel=0.005)
 
 

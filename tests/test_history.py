@@ -272,42 +272,6 @@ def test_a_race_is_kept_in_the_cache_and_read_back_bit_for_bit_by_a_new_process(
         te.twin_edge(twin, PLAIN, *ask)
 
 
-@pytest.mark.parametrize("z", [0.0, 1.28, 2.05, 3.0])
-def test_the_twins_failure_model_says_how_often_laps_fail_at_the_onset(failure_race, z):
-    """The failure model the forecast rests on (a normal CDF of the edge's onset, fitted to the race's laps), against
-    40 laps on noise seeds the race never drew, at the value where it says half the laps fail and where it says
-    10 %, 2 % and 0.1 % do (z edge widths towards the unworn side): the count of failed laps is what a binomial of
-    the model's probability gives (two-sided p-value at least 1 %; with the same five seeds at every value the fit
-    put a tail of 10 % at 3.6 %, issue 35). These gains fail in a wrong-way band below the onset (80 % of laps at
-    μ 0.70, 42 % at 0.62), which the model does not describe and a first failure does not need."""
-    import numpy as np
-    from scipy.stats import binomtest
-
-    from twin.core.closed_loop import run_laps
-    from twin.core.lap import LapLimits
-
-    twin, edge = failure_race
-    f = edge.failure
-    mu = f.threshold + z * f.width  # grip fails below the edge: +z is towards the unworn side
-    n = 40
-    laps = run_laps(twin, [{**PLAIN, "motion.mu": mu}] * n, seed=list(range(9000, 9000 + n)),
-                    limits=LapLimits(timeout_s=30.0), keep_traces=False)
-    failed = sum(not lap.completed for lap in laps)
-    p = float(np.clip(f.p_fail(mu), 1e-4, 1 - 1e-4))
-    assert binomtest(failed, n, p).pvalue >= 0.01, (mu, failed, p, f)
-
-
-@pytest.fixture(scope="module")
-def failure_race():
-    from tuner.history.twin_edge import _twin_edge
-    from twin.core.lap import LapLimits
-
-    twin = DigitalTwin()
-    edge = _twin_edge(twin, PLAIN, "motion.mu", 1.0, 0.4, -1.0, 0, LapLimits(timeout_s=30.0), 5)
-    assert edge.failure is not None
-    return twin, edge
-
-
 def test_a_rebuild_gives_the_same_history_whatever_the_order_the_logs_arrive_in(tmp_path):
     """Three runs of robot r7 (grip aligned 0.8, 0.75, 0.7 on each run's laps 0-1), rebuilt in two orders and twice:
     the same alignments, in the order of the laps they measured (run k's laps 0-1 are laps 6k to 6k+1 of its life),

@@ -109,20 +109,16 @@ def test_cli_record_writes_a_readable_run(tmp_path, capsys):
 
 
 def test_grip_the_run_never_tests_gets_no_interval_but_the_values_that_fit(tmp_path, capsys):
-    """Default gains on the default track, robot seed 3, hidden μ 0.7 and 1.1: the robot never slips, so the two runs
-    are the same. μ gets no interval (null in the JSON), and the values that fit as well include both hidden
-    values and reach the upper bound of μ's physical range, 2."""
-    paths: dict[str, str] = {}  # one alignment per distinct run
-    hidden: dict[str, list[float]] = {}
-    for mu in (0.7, 1.1):
-        path = tmp_path / f"run-{mu}.jsonl"
-        assert main(["record", "--set", f"motion.mu={mu}", "--seed", "3", "--out", str(path)]) == 0
-        paths.setdefault(path.read_text(), str(path))
-        hidden.setdefault(path.read_text(), []).append(mu)
+    """Default gains on the default track, robot seed 3, hidden μ 0.7: the robot never slips (with the caster's drag
+    its run differs from one at μ 1.1 only in the tyres' micro-slip: wheel speeds in the 4th digit, laps 13.8141 s
+    against 13.8147 s).
+    μ gets no interval (null in the JSON), and the values that fit as well include the hidden value and reach the
+    upper bound of μ's physical range, 2. (One run: each alignment here is a few minutes of the suite's time.)"""
+    path = tmp_path / "run.jsonl"
+    assert main(["record", "--set", "motion.mu=0.7", "--seed", "3", "--out", str(path)]) == 0
     capsys.readouterr()
-    for text, path in paths.items():
-        assert main(["align", "--telemetry", path, "--json"]) == 1  # exit 1: μ is not identified
-        (mu,) = [p for p in json.loads(capsys.readouterr().out)["parameters"] if p["address"] == "motion.mu"]
-        assert mu["ci95"] is None and not mu["identifiable"], mu
-        lo, hi = mu["consistent"]
-        assert all(lo <= h <= hi for h in hidden[text]) and hi == 2.0, (hidden[text], mu["consistent"])
+    assert main(["align", "--telemetry", str(path), "--json"]) == 1  # exit 1: μ is not identified
+    (mu,) = [p for p in json.loads(capsys.readouterr().out)["parameters"] if p["address"] == "motion.mu"]
+    assert mu["ci95"] is None and not mu["identifiable"], mu
+    lo, hi = mu["consistent"]
+    assert lo <= 0.7 <= hi and hi == 2.0, mu["consistent"]
