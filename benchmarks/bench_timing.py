@@ -28,7 +28,7 @@ import sys
 
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
-from twin.model.timing import COMPUTE_PATHS, RELEASE_US, Timing
+from twin.model.timing import COMPUTE_ADDRESSES, COMPUTE_PATHS, RELEASE_US, Timing
 from twin.pil.lap import run_pil_lap
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
@@ -106,8 +106,7 @@ def main() -> int:
                       f"compute {row['mcu_compute_mean_us']:.0f} µs: "
                       + ", ".join(f"{k} {v:.0f}" for k, v in row["mcu_compute_path_mean_us"].items()) + ")", flush=True)
     timing = Timing()
-    defaults = {f"timing.{'compute' if path == 'general' else 'compute_' + path}": timing.compute_time_us(path)
-                for path in COMPUTE_PATHS}
+    defaults = {f"timing.{address}": timing.compute_time_us(path) for path, address in COMPUTE_ADDRESSES.items()}
     means = [abs(r["mean_difference_percent"]) for r in rows if r["mean_difference_percent"] is not None]
     largest = [abs(r["largest_difference_percent"]) for r in rows if r["largest_difference_percent"] is not None]
     summary = {"rows": rows, "seeds": seeds, "target_percent": TARGET_PERCENT,

@@ -4,12 +4,13 @@ laps:
 
 * the failure model (:class:`tuner.prognostics.FailureModel`): the probability that a lap fails at a value,
   a normal CDF fitted by maximum likelihood to the raced laps, finished or failed, of the onset: from the least
-  worn value to the first where most laps fail (a grid over the edge and its width: deterministic). Each value's laps draw noise seeds of their own: with the same few seeds at every value
-  (common random numbers) a lap's failure is one seed's threshold seen again and again, and the fit learns the
-  spread of five thresholds, not how often a lap fails: it put the plain gains' failures at μ 0.69 at 3.6 % a lap
-  where 40 independent seeds fail 10 % (issue 35);
-* how well a lap time pins the parameter: the mean lap time's slope over the ladder's values before its first
-  failure [s per unit], and the scatter of a lap time around it over noise seeds [s]; an alignment on n laps then knows
+  worn value to the first where most laps fail (a grid over the edge and its width: deterministic). Each value's
+  laps draw noise seeds of their own: with the same few seeds at every value (common random numbers) a lap's failure
+  is one seed's threshold seen again and again, and the fit learns the spread of five thresholds, not how often a
+  lap fails: it put the plain gains' failures at μ 0.69 at 3.6 % a lap where 40 independent seeds fail 10 % (issue
+  35);
+* how well a lap time pins the parameter: the mean lap time's slope over the ladder's values before the edge
+  [s per unit], and the scatter of a lap time around it over noise seeds [s]; an alignment on n laps then knows
   the parameter to about scatter/√n/|slope|, whatever its own consistent interval says;
 * what a finished lap shows at each value (:class:`tuner.prognostics.ObservationModel`): the mean lap time and the
   mean offset of the line from the sensor array's centre (what the robot's telemetry gives, read the same way:

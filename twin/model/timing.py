@@ -31,14 +31,18 @@ from twin.model.control import RUN
 # general 1241–1258 µs (6787 ticks, mean 1247.5), centred 1096–1131 µs (1715 ticks, mean 1100), lost 1114 µs (78
 # ticks, the chicane: the only lap that lost the line), calibrate 950–964 µs (5 laps). One constant for all paths
 # (1225 µs, the laps' overall mean) left the C loop's lap 0.215 % longer than the MCU's on the chicane with plainly
-# tuned gains, whose laps take the paths in other shares (docs/models.md, "The robot's timing"). tests/test_timing.py measures them again against these defaults.
+# tuned gains, whose laps take the paths in other shares (docs/models.md, "The robot's timing").
+# tests/test_timing.py measures them again against these defaults.
 RELEASE_US = 22.0
 COMPUTE_US = 1248.0
 COMPUTE_CENTRED_US = 1100.0
 COMPUTE_LOST_US = 1115.0
 COMPUTE_CALIBRATE_US = 955.0
-# The compute's code paths, in the order of enum lf_compute_path (twin/csrc/sim/twin_core.h).
-COMPUTE_PATHS = ("general", "centred", "lost", "calibrate")
+# The compute's code paths, in the order of enum lf_compute_path (twin/csrc/sim/twin_core.h), and the model-space
+# address of each one's time (under timing.; the Timing field is the address with _us).
+COMPUTE_ADDRESSES = {"general": "compute", "centred": "compute_centred", "lost": "compute_lost",
+                     "calibrate": "compute_calibrate"}
+COMPUTE_PATHS = tuple(COMPUTE_ADDRESSES)
 PWM_COUNTS = 256  # the 3pi's motor PWM: Timers 0 and 2, 8 bits (twin/csrc/firmware/avr/motors.c)
 
 
@@ -80,7 +84,7 @@ class Timing:
 
     def compute_time_us(self, path: str) -> float:
         """The compute's time [µs] on code ``path`` (one of :data:`COMPUTE_PATHS`)."""
-        return getattr(self, "compute_us" if path == "general" else f"compute_{path}_us")
+        return getattr(self, f"{COMPUTE_ADDRESSES[path]}_us")
 
     def reaction_s(self, read_us: float, path: str = "general") -> float:
         """Seconds from a tick to its duties taking effect, for a read lasting ``read_us`` [µs] and a compute on code
@@ -103,8 +107,9 @@ def applied_voltages(tick_s: np.ndarray, duty: np.ndarray, read_us: np.ndarray, 
     """The motor voltages [V] of each of ``steps`` physics steps from time 0, shape (steps, 2): the Python reference
     of the C loop's rule (decide, drive in mujoco_glue.c). Tick k at ``tick_s[k]`` [s] (on a step) decided
     ``duty[k]`` (left, right in [-1, 1]) from a read lasting ``read_us[k]`` [µs] and a compute on code path
-    ``paths[k]`` (default: all general); its duties take effect :meth:`Timing.reaction_s` after it, and over the step they arrive in the voltage is the mean of the old and the
-    new, weighted by the time each is in force; a tick takes a duty still waiting."""
+    ``paths[k]`` (default: all general); its duties take effect :meth:`Timing.reaction_s` after it, and over the
+    step they arrive in the voltage is the mean of the old and the new, weighted by the time each is in force; a tick
+    takes a duty still waiting."""
     applied = np.zeros((steps, 2))
     now, pending, due, k = np.zeros(2), None, math.inf, 0
     for n in range(steps):

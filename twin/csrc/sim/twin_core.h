@@ -26,14 +26,12 @@
 #define LF_SIGNATURE 8 /* model sizes in lf_sim.model_signature: see model_signature() in mujoco_glue.c */
 
 
-/* The robot's timing: when the duties a control tick decides reach the motors. On the robot the tick releases the
- * QTR-RC lines (the readings' instant), the read lasts until the last line has fallen or the timeout (each line's
- * decay is its raw reading), then the firmware computes and writes the PWM compare values, whole timer counts. Defaults are measured on
- * the emulated MCU (twin/csrc/pil/avr_timing.c; twin.model.timing). */
 /* The code paths of a control tick's compute, which take measurably different times on the MCU (avr_timing.c): the
  * line seen off centre (the general path), the line read exactly at the centre (e = 0: the soft-float products of a
  * zero are short), the line lost (readLine reports an end without its division), a calibration tick. */
-enum lf_compute_path { LF_PATH_GENERAL = 0, LF_PATH_CENTRED = 1, LF_PATH_LOST = 2, LF_PATH_CALIBRATE = 3, LF_COMPUTE_PATHS = 4 };
+enum lf_compute_path {
+  LF_PATH_GENERAL = 0, LF_PATH_CENTRED = 1, LF_PATH_LOST = 2, LF_PATH_CALIBRATE = 3, LF_COMPUTE_PATHS = 4
+};
 
 /* The path a tick took, from the state its lf_step left. */
 static inline int32_t lf_compute_path(const lf_state *fw) {
@@ -42,6 +40,11 @@ static inline int32_t lf_compute_path(const lf_state *fw) {
   return fw->e == 0 ? LF_PATH_CENTRED : LF_PATH_GENERAL;
 }
 
+/* The robot's timing: when the duties a control tick decides reach the motors. On the robot the tick releases the
+ * QTR-RC lines (the readings' instant), the read lasts until the last line has fallen or the timeout (each line's
+ * decay is its raw reading), then the firmware computes (for as long as its code path takes) and writes the PWM
+ * compare values, whole timer counts. Defaults are measured on the emulated MCU (twin/csrc/pil/avr_timing.c;
+ * twin.model.timing). */
 typedef struct {
   double release_us;             /* the tick to the lines' release [us] */
   double compute_us;             /* the read's end to the PWM write [us], the compute's general path (the line seen
@@ -162,8 +165,9 @@ void lf_integrate_energy(const mjModel *m, const mjData *d, lf_sim *s); /* motor
 int32_t lf_tick_due(const mjData *d, const lf_sim *s);                  /* a control tick is due at d->time */
 void lf_read_sensors(const mjModel *m, const mjData *d, lf_sim *s, double *height0); /* every sensor's raw reading */
 /* The robot's timing (lf_timing): how long `reads` reads of every sensor last, the slowest line's raw reading each
- * [us]; the firmware's compute time for the code path its last lf_step took [us]; a tick's duties in [-1, 1], which take effect release + read_us + compute_us after d->time, at the PWM's whole
- * counts; and every step, the voltages the motors see over the step beginning at d->time [V]. */
+ * [us]; the firmware's compute time for the code path its last lf_step took [us]; a tick's duties in [-1, 1], which
+ * take effect release + read_us + compute_us after d->time, at the PWM's whole counts; and every step, the voltages
+ * the motors see over the step beginning at d->time [V]. */
 double lf_read_time_us(const lf_sim *s, int32_t reads);
 double lf_compute_time_us(const lf_sim *s);
 void lf_decide(const mjData *d, lf_sim *s, double duty_left, double duty_right, double read_us, double compute_us);
