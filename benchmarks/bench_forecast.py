@@ -13,10 +13,11 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
   * prognostic horizon: the life left when the forecasts start, and stay, within ±α of the true end of life
     (α = 0.2 of the whole life), as a fraction of the life;
   * relative accuracy at λ = 0.5: 1 − |true − median|/true;
-  * the forecast's wall time (a forecast must be ready within one lap at real time on 2 cores): the first of a
-    robot's races the twin for each cause (each robot with a cache folder of races of its own), the later ones
-    reuse the race; and once more after forgetting it, as a new ``history`` process does: the race read back
-    from the cache folder.
+  * the forecast's wall time (a forecast must be ready within one lap at real time on 2 cores): each robot's
+    ``live --race-ahead`` races its gains on the twin in the background for each cause (each robot with a cache
+    folder of its own): how long that took, against the laps a forecast waits for (``MIN_TIMED_LAPS``) at real
+    time; the first forecast, on those races (a robot kept by an older ``--keep`` has none: its first forecast
+    races the twin); and once more after forgetting them, as a new ``history`` process does.
 
   python benchmarks/bench_forecast.py [--seeds 2] [--speed 10] [--scenario NAME ...] [--keep DIR | --again DIR]
                                       [--quick] [--json]
@@ -32,7 +33,6 @@ import contextlib
 import json
 import math
 import os
-import shutil
 import statistics
 import subprocess
 import sys
@@ -40,7 +40,7 @@ import tempfile
 import time
 
 from tuner.history import forecast_failure, log_laps
-from tuner.history.forecast import SERVICE
+from tuner.history.forecast import MIN_TIMED_LAPS, SERVICE
 from tuner.history.ingest import cross_track
 from tuner.history.report import soonest
 from tuner.history import twin_edge
@@ -68,12 +68,13 @@ ALPHA, LAMBDA = 0.2, 0.5
 
 def run_robot(folder: str, drifts: list[str], laps: int, seed: int, speed: float) -> tuple[dict, list]:
     """One robot watched by plain live: (live's JSON, the robot's own laps (completed, lap time))."""
+    env = {**os.environ, "TWIN_CACHE_DIR": os.path.join(folder, "cache")}  # each robot's races its own
     emu = subprocess.Popen([*RUN, "emulate", "--tcp", "0", "--speed", str(speed), "--laps", str(laps), "--seed",
                             str(seed), *[w for d in drifts for w in ("--drift", d)], "--echo", "echo.txt", "--json",
-                            *GAINS], cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+                            *GAINS], cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
     url = json.loads(emu.stdout.readline())["link"]
-    live = subprocess.run([*RUN, "live", "--port", url, "--laps", str(laps), "--json", *GAINS], cwd=folder,
-                          capture_output=True, text=True)
+    live = subprocess.run([*RUN, "live", "--port", url, "--laps", str(laps), "--json", "--race-ahead", *GAINS],
+                          cwd=folder, capture_output=True, text=True, env=env)
     emu.wait(timeout=120)
     if live.returncode != 0 and not live.stdout.strip():
         raise RuntimeError(f"live failed in {folder}: {live.stderr[-2000:]}")
@@ -87,14 +88,19 @@ def robot_laps_of(folder: str) -> list:
     return [(lap.lap_time_s, cross_track(lap, PITCH_M)[1]) for lap in log_laps(os.path.join(folder, "echo.txt"))]
 
 
-def forecasts_of(twin: DigitalTwin, doc: dict, robot_laps: list, seed: int) -> dict:
+def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int) -> dict:
     """The forecasts at POINTS of the life, and every EVERY laps (for the prognostic horizon), from what the
     history would hold: live's alignments and the robot's laps (lap time, the line's mean offset)."""
     lap_times = [t for t, _ in robot_laps]
-    twin_edge.forget_races()  # each robot's first forecast races the twin (its own cache folder of races)
-    twin_edge.RACES = tempfile.mkdtemp(prefix="bench-forecast-races-")
+    twin_edge.forget_races()  # each robot's first forecast reads the races its live ran ahead, in its cache folder
+    twin_edge.RACES = os.path.join(folder, "cache", "twin-edges")
+    ahead = doc.get("race_ahead") or {}
     failed = next((k for k, t in enumerate(lap_times) if t is None), None)
-    out = {"first_failed_lap": failed, "forecasts": []}
+    done = [t for t in lap_times if t is not None]
+    out = {"first_failed_lap": failed, "forecasts": [], "race_ahead_state": ahead.get("state"),
+           "race_ahead_wall_s": ahead.get("wall_s"),
+           # what the races must beat: the laps a forecast waits for, at real time
+           "min_timed_laps_s": round(MIN_TIMED_LAPS * statistics.median(done), 1) if done else None}
     if failed is None:
         return out
     aligned = [a for a in doc["alignments"] if a.get("lap") is not None]
@@ -119,7 +125,6 @@ def forecasts_of(twin: DigitalTwin, doc: dict, robot_laps: list, seed: int) -> d
     again, wall = forecast(at[-1])
     assert again.quantiles == f.quantiles and again.statement == f.statement, "a race read back is not the race"
     out["cached_wall_s"] = round(wall, 2)
-    shutil.rmtree(twin_edge.RACES, ignore_errors=True)
     return out
 
 
@@ -148,7 +153,11 @@ def metrics(runs: list[dict]) -> dict:
                   for f in r["forecasts"]]
         start = next((i for i in range(len(within)) if all(within[i:])), None)
         horizons.append(0.0 if start is None else (life - r["forecasts"][start]["now"]) / life)
-    walls = [max(f["wall_s"] for f in r["forecasts"]) for r in runs if r["forecasts"]]  # the one that raced the twin
+    walls = [max(f["wall_s"] for f in r["forecasts"]) for r in runs if r["forecasts"]]  # the slowest: the first
+    # to ask for the races (on those live ran ahead)
+    ahead = [r["race_ahead_wall_s"] for r in runs if r.get("race_ahead_state") == "done"]
+    beaten = [r["race_ahead_wall_s"] <= r["min_timed_laps_s"] for r in runs
+              if r.get("race_ahead_state") == "done" and r.get("min_timed_laps_s")]
     cached = [r["cached_wall_s"] for r in runs if "cached_wall_s" in r]
     return {"forecasts": len(points), "without_a_number": silent,
             "coverage_90": round(sum(map(_covered, points)) / len(points), 3) if points else None,
@@ -157,6 +166,9 @@ def metrics(runs: list[dict]) -> dict:
             "alpha_lambda_met": round(sum(alpha_lambda) / len(alpha_lambda), 3) if alpha_lambda else None,
             "relative_accuracy_median": round(statistics.median(ra), 3) if ra else None,
             "prognostic_horizon_median": round(statistics.median(horizons), 3) if horizons else None,
+            "race_ahead_done": f"{len(ahead)}/{len(runs)}",
+            "race_ahead_wall_s_max": max(ahead) if ahead else None,
+            "race_ahead_within_min_timed_laps": f"{sum(beaten)}/{len(beaten)}",
             "forecast_wall_s_max": max(walls) if walls else None,
             "forecast_wall_s_median": statistics.median(walls) if walls else None,
             "cached_forecast_wall_s_max": max(cached) if cached else None,
@@ -210,7 +222,9 @@ def main() -> None:
                 print(f"{name} seed {seed}: first failed lap "
                       f"{next((k for k, (t, _) in enumerate(robot_laps) if t is None), None)}, "
                       f"{len(doc['alignments'])} alignments", file=sys.stderr)
-                runs.append({"scenario": name, "seed": seed, **forecasts_of(twin, doc, robot_laps, 0)})
+                runs.append({"scenario": name, "seed": seed,
+                             **forecasts_of(twin, os.path.join(tmp, f"{name.replace(' ', '_')}_{seed}"), doc,
+                                            robot_laps, 0)})
     result = {"speed": args.speed, "seeds": args.seeds, "wall_s": round(time.monotonic() - t0, 1),
               "all": metrics(runs), "by_scenario": {n: metrics([r for r in runs if r["scenario"] == n]) for n in names},
               "runs": runs}

@@ -79,7 +79,8 @@ def test_acting_keeps_a_drifting_robot_finishing_where_watching_sees_failures(tm
     db = f"sqlite:///{act_dir / 'history.sqlite'}"
     plain = Pumped([*RUN, "live", "--port", link(plain_robot), *GAINS, "--laps", str(LAPS), "--json"], cwd=plain_dir)
     acting = Pumped([*RUN, "live", "--port", link(act_robot), *GAINS, "--laps", str(LAPS), "--json", "--act",
-                     "--act-every", "3", "--db", db, "--retune-deadline", "600"], cwd=act_dir)  # (lockstep: it waits)
+                     "--act-every", "3", "--db", db, "--retune-deadline", "600", "--no-race-ahead"],
+                    cwd=act_dir)  # (lockstep: it waits)
     results = {}
     for name, live, emu in (("plain", plain, plain_robot), ("act", acting, act_robot)):
         code, out, err = live.wait(timeout=400)
@@ -274,7 +275,7 @@ def test_a_store_the_robot_never_answers_is_reported_not_stored_everywhere(tmp_p
                 "--eeprom", tmp_path / "eeprom.bin")
     db = f"sqlite:///{tmp_path / 'h.sqlite'}"
     code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 20, "--act", "--ack-timeout", 0.3, "--db", db,
-                               "--log", tmp_path / "live.log")
+                               "--log", tmp_path / "live.log", "--no-race-ahead")
     _, _, emu_err = emu.wait(timeout=60)
     assert code == 0, err + emu_err
     change = doc["changes"][0]

@@ -1,8 +1,9 @@
 """When will the gains in force stop finishing laps? Prognostics as the field does it (:mod:`tuner.prognostics`),
 for each part that wears (:data:`SERVICE`: grip, the battery) and each aligned parameter, one at a time:
 
-1. the twin races the gains in force at a ladder of values of the parameter, from the least worn value known
-   towards the worn end (a few noise seeds each, common to every value), then finely where the laps still finish
+1. the twin races the gains in force at a ladder of values of the parameter, from a little above the twin's value
+   (or a less worn value measured: :func:`race_range`) towards the worn end (a few noise seeds each, each value
+   its own), then finely where the laps still finish
    and across the first failures (:mod:`tuner.history.twin_edge`): how likely a lap is to fail at each value (the
    failure model), and what a finished lap shows at each value, its lap time and the line's mean offset from the
    sensor array's centre, with their scatter lap to lap (the observation model);
@@ -44,6 +45,7 @@ from twin.core.lap import LapLimits
 
 LADDER = 12  # values raced along the trend, one batch
 REFINE = 6  # then between the last that finished and the first that failed, one more batch
+LAP_TIMEOUT_S = 30.0  # the longest lap the twin races for a forecast [s]
 MIN_MEASURED_LAPS = 2  # alignments at different laps, at least, for a forecast …
 MIN_TIMED_LAPS = 8  # … or this many finished laps on the gains in force, read through the twin
 EDGE_PRIOR = 0.05  # the robot's failure edge lies within this share of the way to it of the twin's (one sd)
@@ -116,6 +118,49 @@ def first_failure(twin: DigitalTwin, gains: dict, address: str, start: float, en
 
 
 
+def service_direction(twin: DigitalTwin, address: str, known: list[float]) -> float:
+    """The way a part that wears one way goes (−1: down): towards its service limit from the twin's value and the
+    values measured."""
+    return -1.0 if SERVICE[address][0] < max([*known, float(twin.space.get(address))]) else 1.0
+
+
+def _range_from(twin: DigitalTwin, address: str, unworn: float, direction: float) -> tuple[float, float]:
+    p = twin.space.parameter(address)
+    end = p.lower if direction < 0 else p.upper
+    service = SERVICE.get(address)
+    if service is not None and (service[0] - unworn) * direction > 0:
+        end = unworn + 2 * (service[0] - unworn)  # twice as far as the service limit: far enough, and finely spaced
+    end = float(np.clip(end, p.lower, p.upper))
+    # a tenth of the way further back than the least worn value: a robot a little better than it fits in
+    return float(np.clip(unworn - 0.1 * (end - unworn), p.lower, p.upper)), end
+
+
+def race_range(twin: DigitalTwin, address: str, known: list[float], direction: float) -> tuple[float, float]:
+    """(start, end) of the values the twin races the gains at, from the twin's value of ``address`` towards where
+    the wear goes (``direction``); only a value measured less worn than that start moves it. So the range, and
+    the race, are the robot's history's only in that rare case: a race run ahead (:func:`race_ahead`) is the one a
+    forecast asks for."""
+    start, end = _range_from(twin, address, float(twin.space.get(address)), direction)
+    unworn = max(known, default=start) if direction < 0 else min(known, default=start)
+    if (unworn - start) * direction < 0:
+        start, end = _range_from(twin, address, unworn, direction)
+    return start, end
+
+
+def race_ahead(twin: DigitalTwin, gains: dict, seed: int = 0, lap_timeout_s: float = LAP_TIMEOUT_S,
+               seeds: int = EDGE_SEEDS) -> dict:
+    """Race ``gains`` on the twin for each part that wears (:data:`SERVICE`) as the first forecast on them will
+    ask (the cache keeps each race): {address: the race}. ``live`` runs it in the background when a robot's gains
+    come into force (:mod:`tuner.history.race_ahead`)."""
+    out = {}
+    for address in sorted(SERVICE):
+        direction = service_direction(twin, address, [])
+        start, end = race_range(twin, address, [], direction)
+        out[address] = twin_edge(twin, gains, address, start, end, direction, seed,
+                                 LapLimits(timeout_s=lap_timeout_s), seeds=seeds)
+    return out
+
+
 def measurements_of(alignments: list[dict], address: str, lap_sd: float | None = None) -> list[Measurement]:
     """The measured alignments of ``address`` (estimates from failed laps are not measurements); each one's standard
     error from its consistent interval and, given ``lap_sd`` (how far one lap time pins the parameter, in its
@@ -174,7 +219,7 @@ def observations_of(laps: list[dict], gains: dict, now_lap: int, offset: bool) -
 
 
 def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], address: str,
-                     now_lap: int, seeds: int = EDGE_SEEDS, seed: int = 0, lap_timeout_s: float = 30.0,
+                     now_lap: int, seeds: int = EDGE_SEEDS, seed: int = 0, lap_timeout_s: float = LAP_TIMEOUT_S,
                      settings: FilterSettings | None = None) -> Forecast:
     """When the ``gains`` in force first fail, from the robot's ``alignments`` of ``address`` (each with
     ``first_lap``, ``lap``, ``value``, ``interval``) and its ``laps`` (``n``, ``completed``, ``gains``,
@@ -193,19 +238,13 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
                           f"at different laps and {len(timed)} timed lap(s) on the gains in force (at least "
                           f"{MIN_MEASURED_LAPS} alignments at different laps, or {MIN_TIMED_LAPS} timed laps of a part "
                           f"that wears one way, are needed)", evidence, "too little evidence")
-    known = [m.value for m in ms] + [float(twin.space.get(address))]
+    known = [m.value for m in ms]
     if service is not None:  # a part that wears one way only (grip, charge): towards its service limit
-        direction = -1.0 if service[0] < max(known) else 1.0
+        direction = service_direction(twin, address, known)
     else:  # else the way the alignments say it goes
         first = estimate(ms, (), now_lap, settings or FilterSettings(span=float(p.upper - p.lower)), None, seed)
         direction = -1.0 if first.rate_quantiles((0.5,))[0] <= 0 else 1.0
-    unworn = max(known) if direction < 0 else min(known)
-    end = p.lower if direction < 0 else p.upper
-    if service is not None and (service[0] - unworn) * direction > 0:
-        end = unworn + 2 * (service[0] - unworn)  # twice as far as the service limit: far enough, and finely spaced
-    end = float(np.clip(end, p.lower, p.upper))
-    # the least worn value known, a tenth of the way further back: a robot a little better than any measured fits in
-    start = float(np.clip(unworn - 0.1 * (end - unworn), p.lower, p.upper))
+    start, end = race_range(twin, address, known, direction)
     edge = twin_edge(twin, gains, address, start, end, direction, seed, LapLimits(timeout_s=lap_timeout_s),
                      seeds=seeds)
     failure, failing, raced = edge.failure, edge.failing, edge.laps

@@ -150,7 +150,7 @@ def _lap_times(rows) -> tuple[float | None, float | None]:
 _RECENT: dict = {}  # the last few races, by what decides them: a forecast lap after lap races the same ladder
 RECENT = 8
 RACES = "twin-edges"  # their folder in the cache (lf_common.cache.cache_dir()), one verified entry per race
-STORE_FORMAT = 1
+STORE_FORMAT = 2  # 2: the twin's values as its laps run them (race_record)
 
 
 def forget_races() -> None:
@@ -192,10 +192,14 @@ def _model_packages():
 def race_record(twin: DigitalTwin, gains: dict, address: str, start: float, end: float, direction: float, seed: int,
                 limits: LapLimits, seeds: int) -> dict:
     """Everything a race depends on, as JSON: the twin's configuration (robot, track, values), the gains, the
-    ladder and the code."""
+    ladder and the code. The values are those its laps run with: the twin's own under the gains, and not the
+    raced parameter's (each lap sets it): a twin built with other gains, or another value of the parameter, races
+    the same laps and finds the same race (``live``'s twin runs ahead what ``history``'s asks for)."""
     from tuner.sensitivity.learned import config_record
 
-    return {"format": STORE_FORMAT, "twin": json.loads(json.dumps(config_record(twin), default=str)),
+    config = json.loads(json.dumps(config_record(twin), default=str))
+    config["values"] = {a: v for a, v in sorted({**config["values"], **gains}.items()) if a != address}
+    return {"format": STORE_FORMAT, "twin": config,
             "gains": dict(sorted(gains.items())), "address": address, "start": start, "end": end,
             "direction": direction, "seed": seed, "limits": dataclasses.asdict(limits), "seeds": seeds,
             "ladder": [LADDER, REFINE, DENSE], "code": code_digest()}

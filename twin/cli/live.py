@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from twin.link import LinkStats, LogWriteError, Outbox
 
 HELP = "run the twin beside the robot: compare laps, re-align when they disagree"
+RACE_AHEAD_WAIT_S = 600.0  # the longest a planned end waits for the races run ahead (each lap has its timeout)
 
 
 def add_parser(sub) -> None:
@@ -65,6 +66,11 @@ def add_parser(sub) -> None:
     p.add_argument("--confirm-laps", type=o.count_type, default=lib.ACT_CONFIRM_LAPS, metavar="N",
                    help="laps with new gains compared with the prediction before they are confirmed (or rolled back)")
     o.add_db(p, "the robot's life (robots, runs, laps, alignments, gain changes)")
+    p.add_argument("--race-ahead", action=argparse.BooleanOptionalAction, default=None, help=(
+        "race the gains in force on the twin in a background process while the robot laps, as history's forecast "
+        "will (each part that wears), so that its first forecast reads the races from the cache instead of running "
+        "them (default: on with --db; at a planned end, --laps or --duration, live waits for them, at most "
+        f"{RACE_AHEAD_WAIT_S:g} s; stopped unfinished by a signal or a link given up)"))
     p.add_argument("--ack-timeout", type=o.number(0.01, 3600.0), default=lib.ACT_ACK_TIMEOUT_S, metavar="WALL_S",
                    help="how long to wait for the robot's answer to a command (a STORE unanswered is sent again, "
                         f"{lib.ACT_STORE_TRIES} times in all, then reported not stored)")
@@ -236,6 +242,8 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     written; (summary, exit code, that log error)."""
     with loading():
         from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display
+        from tuner.history.race_ahead import RaceAhead
+        from twin.telemetry.wire import GAIN_ADDRESSES
         from tuner.live import LiveTwin, Worker, check_state, decode_line, feed_line, resume
         from twin.link import (DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, breaks_path, check_log,
                                read_link)
@@ -247,8 +255,10 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     check_journal(actions_path(args.log))
     ours = [f for f in (args.log, breaks_path(args.log), actions_path(args.log)) if not os.path.lexists(f)]
     log_file = DurableLog(args.log)  # locked, a cut-off last line marked: before anything reads it
-    journal, actions, outbox, db = None, [], Outbox(), None
+    journal, actions, outbox, db, ahead, race_ahead = None, [], Outbox(), None, None, None
     try:
+        if args.race_ahead or (args.race_ahead is None and args.db):
+            ahead = RaceAhead(twin, {a: twin.space.get(a) for a in GAIN_ADDRESSES})
         journal = Journal(actions_path(args.log), os.path.basename(args.log))
         db = HistoryWriter(args.db, args.log, out.warn, journal.log_id) if args.db else None
         actor = _actor(args, twin, options, outbox, journal, _action_printer(out, journal, rec, actions, db))
@@ -291,7 +301,12 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
                 if worker is not None:
                     worker.finish()
         live.finish()  # (a second Ctrl-C interrupts this wait: the handlers are back)
+        if ahead is not None and not (signalled or gave_up or log_error):  # a planned end: history comes next
+            out.say("finishing the twin's races of the gains in force, for history's first forecast")
+            race_ahead = ahead.stop(wait_s=RACE_AHEAD_WAIT_S)
     finally:
+        if ahead is not None and race_ahead is None:
+            race_ahead = ahead.stop()
         log_file.close()
         if journal is not None:
             journal.close()
@@ -305,6 +320,7 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     summary["changes"] = actor.summary() if actor is not None else []
     summary["robot_state"] = actor.robot_state() if actor is not None else None
     summary["keep_alives"] = actor.keep_alives if actor is not None else 0
+    summary["race_ahead"] = race_ahead
     summary["journal"] = os.path.abspath(journal.path) if os.path.exists(journal.path) else None
     summary["history"] = None if db is None else {"db": display(args.db), "written": db.written, "error": db.failed}
     if not os.path.exists(args.log):

@@ -1,0 +1,77 @@
+"""The twin's races run ahead by ``live`` are the ones ``history``'s first forecast asks for (issue 35: a forecast
+ready within a lap): an emulated robot through ``live --db``, then ``history``: no race is run twice."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import pytest
+
+from live_helpers import emulator
+from reference_gains import set_flags
+from tuner.history import forecast_failure
+from tuner.history import twin_edge as te
+from tuner.history.forecast import SERVICE
+from twin.cli.main import main
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+
+# fixed on purpose: the races of any gains will do, and these fail within the range raced (a failure model to read)
+PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+LAPS = 9  # a forecast of a part that wears needs 8 timed laps
+
+
+def races(cache) -> list[str]:
+    folder = cache / te.RACES
+    return sorted(os.listdir(folder)) if folder.is_dir() else []
+
+
+def test_live_runs_ahead_the_races_history_reads(tmp_path, capsys, monkeypatch):
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("TWIN_CACHE_DIR", str(cache))
+    emu = emulator("--track", "oval", "--tcp", 0, "--speed", 1000, "--laps", LAPS, "--json", *set_flags(PLAIN),
+                   cwd=tmp_path)
+    port = json.loads(emu.wait_line("stdout", lambda line: line.startswith("{"), "the emulator's link"))["link"]
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    capsys.readouterr()
+    code = main(["live", "--track", "oval", "--port", port, "--laps", str(LAPS), "--log", str(tmp_path / "live.log"),
+                 "--db", url, "--json", *set_flags(PLAIN)])
+    emu.wait(timeout=60)
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert json.loads(out)["race_ahead"]["state"] == "done", out
+    ahead = races(cache)
+    assert len(ahead) == len(SERVICE)  # one race per part that wears, and no half-written entry beside them
+    # history, a new process with the world flags alone (the gains come from the robot's laps): it reads them
+    te.forget_races()
+    monkeypatch.setattr(te, "_twin_edge", lambda *a: pytest.fail("history raced the twin again"))
+    assert main(["history", "--track", "oval", "--db", url, "--json"]) == 0
+    [robot] = json.loads(capsys.readouterr().out)["robots"]
+    assert robot["gains_in_force"] == PLAIN and races(cache) == ahead
+    for address in SERVICE:
+        assert robot["forecasts"][address]["laps"] > 0 and robot["forecasts"][address]["raced"] is not None
+
+
+def test_only_a_value_measured_less_worn_than_the_twin_moves_the_race(tmp_path, monkeypatch):
+    """The race starts a little above the twin's value: a robot measured below it finds the race run ahead; one
+    measured above it is raced from its own value."""
+    monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path))
+    te.forget_races()  # (races this process read before: not in this cache folder)
+    twin = DigitalTwin(track="oval")
+    laps = run_laps(twin, [PLAIN] * LAPS, seed=list(range(100, 100 + LAPS)), keep_traces=False)
+    seen = [{"n": k, "completed": r.completed, "gains": PLAIN, "lap_time_s": r.lap_time_s} for k, r in enumerate(laps)]
+    first = forecast_failure(twin, PLAIN, [], seen, "motion.mu", now_lap=LAPS - 1)
+    assert first.raced is not None and first.raced[0] > twin.space.get("motion.mu"), first.statement
+    assert len(races(tmp_path)) == 1
+    te.forget_races()
+    monkeypatch.setattr(te, "_twin_edge", lambda *a: pytest.fail("raced again"))
+
+    def aligned(value):
+        return [{"first_lap": 0, "lap": 1, "address": "motion.mu", "explained": True, "value": value,
+                 "interval": [value * 0.99, value * 1.01]}]
+
+    below = forecast_failure(twin, PLAIN, aligned(0.8), seen, "motion.mu", now_lap=LAPS - 1)
+    assert below.raced == first.raced
+    with pytest.raises(pytest.fail.Exception, match="raced again"):
+        forecast_failure(twin, PLAIN, aligned(first.raced[0] + 0.05), seen, "motion.mu", now_lap=LAPS - 1)
