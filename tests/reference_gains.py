@@ -7,6 +7,8 @@ in a file can drift away from the tuner's current answer. Not a test module."""
 from __future__ import annotations
 
 import contextlib
+import fcntl
+import hashlib
 import json
 import os
 import sys
@@ -15,9 +17,52 @@ import tempfile
 from twin.cli.main import main
 
 
+def code_digest() -> str:
+    """What the tuner's answer depends on beside its flags: every file of every package of ours (source, the C
+    core, tracks and robot data), not their bytecode."""
+    import twin
+
+    top = os.path.dirname(os.path.dirname(os.path.abspath(twin.__file__)))
+    h = hashlib.sha256()
+    for package in PACKAGES:
+        for root, dirs, names in os.walk(os.path.join(top, package)):
+            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+            for name in sorted(n for n in names if not n.endswith(".pyc")):
+                path = os.path.join(root, name)
+                h.update(os.path.relpath(path, top).encode() + b"\0")
+                with open(path, "rb") as f:
+                    h.update(f.read())
+    return h.hexdigest()
+
+
+PACKAGES = ("lf_common", "line_sensor", "mjcf", "motors", "tuner", "twin")
+
+
 def tuned_gains(*flags: str) -> dict[str, float]:
     """The gains ``python -m tuner -q FLAGS`` writes (default robot and track unless ``flags`` say otherwise; e.g.
-    ``"--robust"``, ``"--track", "oval"``, ``"--max-iter", "1"``), by address."""
+    ``"--robust"``, ``"--track", "oval"``, ``"--max-iter", "1"``), by address. Tuned once per code and flags: the
+    answer is kept in the cache folder (``reference-gains/``) and every process that asks (the test processes, the
+    benchmarks they start) reads it, one tuning at a time (a lock), instead of tuning again."""
+    from lf_common.cache import cache_dir
+
+    key = hashlib.sha256(json.dumps([code_digest(), sys.version, list(flags)]).encode()).hexdigest()[:32]
+    folder = os.path.join(cache_dir(), "reference-gains")
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, key + ".json")
+    with open(os.path.join(folder, key + ".lock"), "w") as lock:
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)  # another process tuning the same: wait for its answer
+        if os.path.isfile(path):
+            with open(path) as f:
+                return json.load(f)["gains"]
+        gains = _tune(flags)
+        tmp = f"{path}.{os.getpid()}.tmp"
+        with open(tmp, "w") as f:
+            json.dump({"flags": list(flags), "gains": gains}, f)
+        os.replace(tmp, path)
+        return gains
+
+
+def _tune(flags) -> dict[str, float]:
     with tempfile.TemporaryDirectory(prefix="tuned-") as folder:
         path = os.path.join(folder, "gains.json")
         with contextlib.redirect_stdout(sys.stderr):  # its summary: a caller's stdout may be one JSON document
