@@ -275,7 +275,7 @@ def test_a_store_the_robot_never_answers_is_reported_not_stored_everywhere(tmp_p
                 "--eeprom", tmp_path / "eeprom.bin")
     db = f"sqlite:///{tmp_path / 'h.sqlite'}"
     code, doc, err = live_json(capsys, "--port", link(emu), "--laps", 20, "--act", "--ack-timeout", 0.3, "--db", db,
-                               "--log", tmp_path / "live.log", "--no-race-ahead")
+                               "--log", tmp_path / "live.log")
     _, _, emu_err = emu.wait(timeout=60)
     assert code == 0, err + emu_err
     change = doc["changes"][0]
@@ -284,6 +284,10 @@ def test_a_store_the_robot_never_answers_is_reported_not_stored_everywhere(tmp_p
     assert doc["robot_state"] == {"running_seq": doc["changes"][-1]["seq"], "stored_seq": 0, "store_pending": None}
     stores = [a["seq"] for a in journaled(tmp_path / "live.log") if a["kind"] == "command" and a["op"] == "STORE"]
     assert stores[:3] == [stores[0]] * 3  # the same STORE, 3 times
+    # with --db the twin's races run ahead for history's forecast, and follow the gains that come into force
+    ahead = doc["race_ahead"]
+    assert ahead["gains"] == stand_in_retune and ahead["state"] == "done", ahead
+    assert [e["gains"] for e in ahead["earlier"]] == [PLAIN]
     said = next(a for a in doc["actions"] if a["kind"] == "not_stored")
     assert "boots on gains #0" in said["outcome"] and "act: not_stored" in err
     engine = sa.create_engine(db)

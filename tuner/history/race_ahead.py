@@ -68,6 +68,31 @@ class RaceAhead:
         return {"state": state, "wall_s": round((self.ended or time.monotonic()) - self.started, 2)}
 
 
+class RacesAhead:
+    """The races ``live`` runs ahead: of the gains in force when it starts and, with ``--act``, of each set that
+    comes into force after (the one before, still running, is stopped: the forecast is of the gains in force),
+    always on the twin as built (an alignment's value in it would be another race than ``history``'s)."""
+
+    def __init__(self, twin, gains: dict, seed: int = 0):
+        self.twin, self.seed = twin.clone(), seed
+        self.gains = {a: float(v) for a, v in gains.items()}
+        self.current = RaceAhead(self.twin, self.gains, seed)
+        self.done: list[dict] = []
+
+    def follow(self, gains: dict) -> None:
+        """New gains in force (those not named keep their value)."""
+        new = {a: float(gains.get(a, v)) for a, v in self.gains.items()}
+        if new == self.gains:
+            return
+        self.done.append({"gains": self.gains, **self.current.stop()})
+        self.gains = new
+        self.current = RaceAhead(self.twin, new, self.seed)
+
+    def stop(self, wait_s: float = 0.0) -> dict:
+        """The last races' {"state", "wall_s", "gains"}, with those of earlier gains (``earlier``)."""
+        return {**self.current.stop(wait_s), "gains": self.gains, "earlier": self.done}
+
+
 def main() -> int:
     os.nice(NICE)
     # stopped: leave as an exception does, so a race half written into the cache is removed (between the twin's

@@ -68,8 +68,8 @@ def add_parser(sub) -> None:
     o.add_db(p, "the robot's life (robots, runs, laps, alignments, gain changes)")
     p.add_argument("--race-ahead", action=argparse.BooleanOptionalAction, default=None, help=(
         "race the gains in force on the twin in a background process while the robot laps, as history's forecast "
-        "will (each part that wears), so that its first forecast reads the races from the cache instead of running "
-        "them (default: on with --db; at a planned end, --laps or --duration, live waits for them, at most "
+        "will (each part that wears; with --act again for each set that comes into force), so that its first "
+        "forecast reads the races from the cache instead of running them (default: on with --db; at a planned end, --laps or --duration, live waits for them, at most "
         f"{RACE_AHEAD_WAIT_S:g} s; stopped unfinished by a signal or a link given up)"))
     p.add_argument("--ack-timeout", type=o.number(0.01, 3600.0), default=lib.ACT_ACK_TIMEOUT_S, metavar="WALL_S",
                    help="how long to wait for the robot's answer to a command (a STORE unanswered is sent again, "
@@ -212,6 +212,16 @@ def _action_printer(out: Output, journal: Journal, rec, actions: list[dict], db:
     return on_action
 
 
+def _following(on_action, ahead):
+    """``on_action``, and the races run ahead follow each set of gains that comes into force."""
+    def on(a: dict) -> None:
+        on_action(a)
+        if a["kind"] == "in_force" and a.get("gains"):
+            ahead.follow(a["gains"])
+
+    return on
+
+
 def _journal_record(journal: Journal, address: str, db: HistoryWriter | None):
     """What the live twin keeps (each lap's twin side, each alignment) to the journal beside the log, and the
     database."""
@@ -242,7 +252,7 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     written; (summary, exit code, that log error)."""
     with loading():
         from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display
-        from tuner.history.race_ahead import RaceAhead
+        from tuner.history.race_ahead import RacesAhead
         from twin.telemetry.wire import GAIN_ADDRESSES
         from tuner.live import LiveTwin, Worker, check_state, decode_line, feed_line, resume
         from twin.link import (DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, breaks_path, check_log,
@@ -258,10 +268,13 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     journal, actions, outbox, db, ahead, race_ahead = None, [], Outbox(), None, None, None
     try:
         if args.race_ahead or (args.race_ahead is None and args.db):
-            ahead = RaceAhead(twin, {a: twin.space.get(a) for a in GAIN_ADDRESSES})
+            ahead = RacesAhead(twin, {a: twin.space.get(a) for a in GAIN_ADDRESSES})
         journal = Journal(actions_path(args.log), os.path.basename(args.log))
         db = HistoryWriter(args.db, args.log, out.warn, journal.log_id) if args.db else None
-        actor = _actor(args, twin, options, outbox, journal, _action_printer(out, journal, rec, actions, db))
+        on_action = _action_printer(out, journal, rec, actions, db)
+        if ahead is not None:
+            on_action = _following(on_action, ahead)
+        actor = _actor(args, twin, options, outbox, journal, on_action)
         live = LiveTwin(twin, options, state, on_lap, actor, _journal_record(journal, options.address, db))
         start_laps = resume(live, args.log)
         if start_laps:
