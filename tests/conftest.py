@@ -140,6 +140,11 @@ def one_ray_head(tmp_path_factory):
 @pytest.fixture(autouse=True, scope="session")
 def _cache_dir(tmp_path_factory):
     os.environ["TWIN_CACHE_DIR"] = str(tmp_path_factory.mktemp("twin-cache"))
+    # the reference gains (reference_gains.tuned_gains): one folder for the whole run, both pytest processes
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # each process's base folder sits in the run's own
+        root = root.parent
+    os.environ[GAINS_DIR] = str(root / "reference-gains")
 
 
 @pytest.fixture(scope="session")
@@ -157,6 +162,9 @@ def pil_ready():
         if os.environ.get("CI"):
             pytest.fail(f"CI installs gcc-avr, simavr and libsimavr-dev: {e}")
         pytest.skip(str(e))
+
+
+GAINS_DIR = "LF_REFERENCE_GAINS_DIR"  # where reference_gains keeps its answers (default: the cache folder's)
 
 
 @pytest.fixture(scope="session")

@@ -41,12 +41,13 @@ PACKAGES = ("lf_common", "line_sensor", "mjcf", "motors", "tuner", "twin")
 def tuned_gains(*flags: str) -> dict[str, float]:
     """The gains ``python -m tuner -q FLAGS`` writes (default robot and track unless ``flags`` say otherwise; e.g.
     ``"--robust"``, ``"--track", "oval"``, ``"--max-iter", "1"``), by address. Tuned once per code and flags: the
-    answer is kept in the cache folder (``reference-gains/``) and every process that asks (the test processes, the
-    benchmarks they start) reads it, one tuning at a time (a lock), instead of tuning again."""
+    answer is kept in ``$LF_REFERENCE_GAINS_DIR`` (the tests' run sets it for both its processes) or the cache
+    folder's ``reference-gains/``, and every process that asks (the test processes, the benchmarks they start)
+    reads it, one tuning at a time (a lock), instead of tuning again."""
     from lf_common.cache import cache_dir
 
     key = hashlib.sha256(json.dumps([code_digest(), sys.version, list(flags)]).encode()).hexdigest()[:32]
-    folder = os.path.join(cache_dir(), "reference-gains")
+    folder = os.environ.get("LF_REFERENCE_GAINS_DIR") or os.path.join(cache_dir(), "reference-gains")
     os.makedirs(folder, exist_ok=True)
     path = os.path.join(folder, key + ".json")
     with open(os.path.join(folder, key + ".lock"), "w") as lock:
