@@ -42,7 +42,9 @@ def pytest_runtest_makereport(item, call):
         report.longrepr = f"skipped under CI, where every test must run: {reason}"
 
 
-# The suite runs in two processes (pytest -n 2, pytest-xdist), each taking the next test when it is free. The tests
+# The suite runs in two processes (pytest -n 2 --dist worksteal, pytest-xdist), each taking the next test it holds
+# and, when it holds none, half of what the other holds (worksteal; xdist's default left the tests queued behind a long
+# one waiting while the other process idled). The tests
 # that took 18 s or more in a full run (--durations, 2026-11-28, test and fixture time) start first, heaviest first,
 # so that the run does not end on one of them while the other process idles. Only the order changes; a test missing
 # here runs in its place.
@@ -119,6 +121,14 @@ def pytest_collection_modifyitems(config, items):
     def rank(item) -> int:  # heaviest first, in the order listed; the rest (stable sort) as collected
         return next((k for k, name in enumerate(HEAVY_FIRST) if item.nodeid.startswith(name)), len(HEAVY_FIRST))
     items.sort(key=rank)
+    # worksteal hands the first half of the list to one process and the second half to the other, and a process out
+    # of tests steals from the end of the other's: so each half starts with every other heavy test (a half that held
+    # them all would run them one after another while the other stole only light ones)
+    heavy = [i for i in items if rank(i) < len(HEAVY_FIRST)]
+    light = items[len(heavy):]
+    first = heavy[0::2] + light[:max(0, len(items) // 2 - len(heavy[0::2]))]
+    second = heavy[1::2] + light[len(first) - len(heavy[0::2]):]
+    items[:] = first + second
 
 
 @pytest.fixture

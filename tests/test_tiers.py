@@ -216,7 +216,8 @@ def test_under_ci_a_skip_fails_unless_ci_allows_it(tmp_path):
                            capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
         return r.stdout
 
-    for flags in ((), ("-n", "2")):  # alone, and in the README's two processes (pytest-xdist sends the reports over)
+    for flags in ((), ("-n", "2", "--dist", "worksteal")):  # alone, and as the README runs the suite (pytest-xdist
+        # sends the reports over)
         under_ci = outcomes(True, *flags)
         assert "FAILED test_throwaway.py::test_missing - skipped under CI" in under_ci and "frobnicator" in under_ci
         assert "ERROR test_throwaway.py::test_marked - skipped under CI" in under_ci and "no compiler" in under_ci
