@@ -117,7 +117,6 @@ def first_failure(twin: DigitalTwin, gains: dict, address: str, start: float, en
     return failing, finished is None, laps
 
 
-
 def service_direction(twin: DigitalTwin, address: str, known: list[float]) -> float:
     """The way a part that wears one way goes (−1: down): towards its service limit from the twin's value and the
     values measured."""
