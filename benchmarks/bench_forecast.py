@@ -215,19 +215,17 @@ def main() -> None:
             folder = os.path.join(tmp, f"{name.replace(' ', '_')}_{seed}")
             if args.again:
                 with open(os.path.join(folder, "live.json")) as f:
-                    return job, (json.load(f), robot_laps_of(folder))
+                    return job, folder, (json.load(f), robot_laps_of(folder))
             os.makedirs(folder)
             drifts, laps = SCENARIOS[name]
-            return job, run_robot(folder, drifts, laps, seed, args.speed)
+            return job, folder, run_robot(folder, drifts, laps, seed, args.speed)
 
         with ThreadPoolExecutor(args.parallel) as pool:
-            for (name, seed), (doc, robot_laps) in pool.map(one, jobs):
+            for (name, seed), folder, (doc, robot_laps) in pool.map(one, jobs):
                 print(f"{name} seed {seed}: first failed lap "
                       f"{next((k for k, (t, _) in enumerate(robot_laps) if t is None), None)}, "
                       f"{len(doc['alignments'])} alignments", file=sys.stderr)
-                runs.append({"scenario": name, "seed": seed,
-                             **forecasts_of(twin, os.path.join(tmp, f"{name.replace(' ', '_')}_{seed}"), doc,
-                                            robot_laps, 0)})
+                runs.append({"scenario": name, "seed": seed, **forecasts_of(twin, folder, doc, robot_laps, 0)})
     result = {"speed": args.speed, "seeds": args.seeds, "wall_s": round(time.monotonic() - t0, 1),
               "all": metrics(runs), "by_scenario": {n: metrics([r for r in runs if r["scenario"] == n]) for n in names},
               "runs": runs}

@@ -194,6 +194,17 @@ def _sha256(path: str) -> str:
     return h.hexdigest()
 
 
+def files_digest(paths, top: str) -> str:
+    """One SHA-256 over the files ``paths`` (each named by its path relative to ``top``, then its bytes), in sorted
+    order: what a cache key holds for the code or data it was made with."""
+    h = hashlib.sha256()
+    for path in sorted(set(paths)):
+        h.update(os.path.relpath(path, top).encode() + b"\0")
+        with open(path, "rb") as f:
+            h.update(f.read())
+    return h.hexdigest()
+
+
 def write_manifest(folder: str) -> dict[str, str]:
     """List every file under ``folder`` with its SHA-256 in ``folder/MANIFEST``; returns {file: hash}."""
     files, dirs = _tree(folder)

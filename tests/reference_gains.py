@@ -21,18 +21,12 @@ def code_digest() -> str:
     """What the tuner's answer depends on beside its flags: every file of every package of ours (source, the C
     core, tracks and robot data), not their bytecode."""
     import twin
+    from lf_common.files import files_digest
 
     top = os.path.dirname(os.path.dirname(os.path.abspath(twin.__file__)))
-    h = hashlib.sha256()
-    for package in PACKAGES:
-        for root, dirs, names in os.walk(os.path.join(top, package)):
-            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-            for name in sorted(n for n in names if not n.endswith(".pyc")):
-                path = os.path.join(root, name)
-                h.update(os.path.relpath(path, top).encode() + b"\0")
-                with open(path, "rb") as f:
-                    h.update(f.read())
-    return h.hexdigest()
+    return files_digest([os.path.join(root, name) for package in PACKAGES
+                         for root, dirs, names in os.walk(os.path.join(top, package)) if "__pycache__" not in root
+                         for name in names if not name.endswith(".pyc")], top)
 
 
 PACKAGES = ("lf_common", "line_sensor", "mjcf", "motors", "tuner", "twin")

@@ -26,17 +26,17 @@ STOP_WAIT_S = 30.0  # a stopped race ends after the batch of laps it is in (abou
 
 
 class RaceAhead:
-    """The background process racing ``gains`` on a copy of ``twin`` (its values as built, before any alignment),
-    seed ``seed`` (``history``'s default, 0)."""
+    """The background process racing ``gains`` on ``twin`` (unbuilt, as :meth:`DigitalTwin.clone` gives it: it goes
+    to the process pickled), seed ``seed`` (``history``'s default, 0)."""
 
     def __init__(self, twin, gains: dict, seed: int = 0):
-        self.gains = dict(gains)
+        payload = pickle.dumps((twin, dict(gains), int(seed)))  # before the process: a twin that cannot go, no process
         self.started, self.ended = time.monotonic(), None
         self.err = tempfile.TemporaryFile()  # not a pipe: a chatty child never blocks on it
         self.proc = subprocess.Popen([sys.executable, "-m", "tuner.history.race_ahead"], stdin=subprocess.PIPE,
                                      stdout=subprocess.DEVNULL, stderr=self.err)
         try:
-            self.proc.stdin.write(pickle.dumps((twin.clone(), self.gains, int(seed))))
+            self.proc.stdin.write(payload)
             self.proc.stdin.close()
         except OSError:  # it died at once: its status says so
             pass

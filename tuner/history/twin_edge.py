@@ -32,7 +32,7 @@ from scipy.special import log_ndtr
 
 from lf_common.cache import cache_dir, cached_folder
 from lf_common.errors import LineFollowerError
-from lf_common.files import json_safe, read_json, write_json
+from lf_common.files import files_digest, json_safe, read_json, write_json
 from tuner.prognostics import FailureModel, ObservationModel
 from tuner.prognostics.evidence import SLOW
 from twin.core.closed_loop import run_laps
@@ -171,13 +171,7 @@ def code_digest() -> str:
              if n.endswith((".py", ".so", ".pyd", ".c", ".h"))]
     files.append(__file__)
     files.append(os.path.join(os.path.dirname(tuner.__file__), "prognostics", "evidence.py"))
-    top = os.path.dirname(os.path.dirname(os.path.abspath(twin.__file__)))
-    h = hashlib.sha256()
-    for path in sorted(set(files)):
-        h.update(os.path.relpath(path, top).encode() + b"\0")
-        with open(path, "rb") as f:
-            h.update(f.read())
-    return h.hexdigest()
+    return files_digest(files, os.path.dirname(os.path.dirname(os.path.abspath(twin.__file__))))
 
 
 def _model_packages():

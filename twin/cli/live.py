@@ -69,8 +69,9 @@ def add_parser(sub) -> None:
     p.add_argument("--race-ahead", action=argparse.BooleanOptionalAction, default=None, help=(
         "race the gains in force on the twin in a background process while the robot laps, as history's forecast "
         "will (each part that wears; with --act again for each set that comes into force), so that its first "
-        "forecast reads the races from the cache instead of running them (default: on with --db; at a planned end, --laps or --duration, live waits for them, at most "
-        f"{RACE_AHEAD_WAIT_S:g} s; stopped unfinished by a signal or a link given up)"))
+        "forecast reads the races from the cache instead of running them (default: on with --db; at a planned "
+        f"end, --laps or --duration, live waits for them, at most {RACE_AHEAD_WAIT_S:g} s; stopped unfinished by a "
+        "signal or a link given up)"))
     p.add_argument("--ack-timeout", type=o.number(0.01, 3600.0), default=lib.ACT_ACK_TIMEOUT_S, metavar="WALL_S",
                    help="how long to wait for the robot's answer to a command (a STORE unanswered is sent again, "
                         f"{lib.ACT_STORE_TRIES} times in all, then reported not stored)")
@@ -253,10 +254,10 @@ def _link(args, twin, options: LiveOptions, on_lap, out: Output, rec=None) -> tu
     with loading():
         from tuner.history import HistoryWriter, Journal, actions_path, check_journal, display
         from tuner.history.race_ahead import RacesAhead
-        from twin.telemetry.wire import GAIN_ADDRESSES
         from tuner.live import LiveTwin, Worker, check_state, decode_line, feed_line, resume
         from twin.link import (DurableLog, LinkGaveUp, LinkStats, LogWriteError, Outbox, breaks_path, check_log,
                                read_link)
+        from twin.telemetry.wire import GAIN_ADDRESSES
 
     state = args.state or f"{args.log}.state.json"
     stats, signalled, gave_up, log_error = LinkStats(), [], None, None
