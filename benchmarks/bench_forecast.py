@@ -13,6 +13,8 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
   * prognostic horizon: the life left when the forecasts start, and stay, within ±α of the true end of life
     (α = 0.2 of the whole life), as a fraction of the life;
   * relative accuracy at λ = 0.5: 1 − |true − median|/true;
+  * the Monte Carlo's own error: the forecast at half of the life again on ``FILTER_SEEDS`` filter seeds (the
+    races kept): the spread of their medians as a fraction of the true remaining life, and α-λ on each seed;
   * the forecast's wall time (a forecast must be ready within one lap at real time on 2 cores): each robot's
     ``live --race-ahead`` races its gains on the twin in the background for each cause (each robot with a cache
     folder of its own): how long that took, against the laps a forecast waits for (``MIN_TIMED_LAPS``) at real
@@ -64,6 +66,7 @@ EVERY = 5  # … and every this many laps (for the prognostic horizon)
 CAUSES = sorted(SERVICE)  # what history forecasts for a robot: each part that wears; the soonest is the forecast
 PITCH_M = 0.009525  # the default robot's sensor pitch (the robots here are the default robot)
 ALPHA, LAMBDA = 0.2, 0.5
+FILTER_SEEDS = 4  # the forecast at half of the life on this many filter seeds: how far its Monte Carlo moves it
 SEED, SEED_STEP = 7, 1000  # the robots' emulate --seed: 7, 1007, … (each robot's laps use SEED + lap)
 
 
@@ -109,10 +112,10 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
             for k, (t, x) in enumerate(robot_laps)]
     at = sorted({max(1, round(p * failed)) for p in POINTS} | set(range(EVERY, failed, EVERY)))
 
-    def forecast(now):
+    def forecast(now, filter_seed=None):
         t0 = time.perf_counter()
         f = soonest([forecast_failure(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], cause,
-                                       now_lap=now, seed=seed) for cause in CAUSES])
+                                       now_lap=now, seed=seed, filter_seed=filter_seed) for cause in CAUSES])
         return f, time.perf_counter() - t0
 
     for now in at:
@@ -122,6 +125,11 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
                                  "lo": None if q is None else q["5"], "hi": None if q is None else q["95"],
                                  "numbered": q is not None, "statement": f.statement, "wall_s": round(wall, 2),
                                  "at_point": any(now == max(1, round(p * failed)) for p in POINTS)})
+    # the Monte Carlo's own error: the forecast at half of the life again, on other filter seeds (the races kept)
+    half = min(at, key=lambda now: abs(now - LAMBDA * failed))
+    out["filter_seeds_at_half"] = {"now": half, "true_rul": failed - half,
+                                   "medians": [forecast(half, filter_seed=k)[0].laps_to_failure
+                                               for k in range(seed, seed + FILTER_SEEDS)]}
     twin_edge.forget_races()  # a new history process: the races read back from the cache folder
     again, wall = forecast(at[-1])
     assert again.quantiles == f.quantiles and again.statement == f.statement, "a race read back is not the race"
@@ -160,6 +168,12 @@ def metrics(runs: list[dict]) -> dict:
     beaten = [r["race_ahead_wall_s"] <= r["min_timed_laps_s"] for r in runs
               if r.get("race_ahead_state") == "done" and r.get("min_timed_laps_s")]
     cached = [r["cached_wall_s"] for r in runs if "cached_wall_s" in r]
+    # the same evidence on other filter seeds: the spread of the medians (a fraction of the true remaining life),
+    # and α-λ met on each seed
+    seeded = [r["filter_seeds_at_half"] for r in runs if r.get("filter_seeds_at_half")]
+    spreads = [(max(m) - min(m)) / h["true_rul"] for h in seeded if None not in (m := h["medians"])]
+    per_seed = [m is not None and abs(m - h["true_rul"]) <= ALPHA * h["true_rul"] for h in seeded
+                for m in h["medians"]]
     return {"forecasts": len(points), "without_a_number": silent,
             "coverage_90": round(sum(map(_covered, points)) / len(points), 3) if points else None,
             "median_width_laps": statistics.median(widths) if widths else None,
@@ -173,7 +187,10 @@ def metrics(runs: list[dict]) -> dict:
             "forecast_wall_s_max": max(walls) if walls else None,
             "forecast_wall_s_median": statistics.median(walls) if walls else None,
             "cached_forecast_wall_s_max": max(cached) if cached else None,
-            "cached_forecast_wall_s_median": statistics.median(cached) if cached else None}
+            "cached_forecast_wall_s_median": statistics.median(cached) if cached else None,
+            "filter_seed_spread_median": round(statistics.median(spreads), 3) if spreads else None,
+            "filter_seed_spread_max": round(max(spreads), 3) if spreads else None,
+            "alpha_lambda_met_per_filter_seed": round(sum(per_seed) / len(per_seed), 3) if per_seed else None}
 
 
 def main() -> None:

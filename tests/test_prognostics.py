@@ -82,7 +82,8 @@ def test_the_stated_intervals_cover_the_truth_at_their_stated_rate():
     85.5-94.5 % of them: 0.9 ± 3 binomial standard deviations (√(0.9·0.1/400) = 1.5 %), a false alarm about 0.3 %
     of the time for a calibrated filter. The remaining life's 90 % interval (whole laps, ends included, so it
     covers at least its rate) must cover the true first failed lap in 85.5-98 %."""
-    st, horizon, n = FilterSettings(span=0.3, value_range=(0.7, 1.0), renewal=0.0, rate_prior=0.01), 300, 400
+    st, horizon, n = FilterSettings(span=0.3, value_range=(0.7, 1.0), renewal=0.0, rate_prior=0.01,
+                                     particles=4000), 300, 400
     rate_in = life_in = 0
     for i in range(n):
         ms, path, threshold = _synthetic_life(i, st, horizon)
@@ -118,8 +119,10 @@ def _worn_life(i: int, st: FilterSettings, model: ObservationModel, horizon: int
 def test_lap_by_lap_features_give_intervals_that_cover_the_truth_at_their_stated_rate():
     """200 synthetic worn lives read lap by lap through two correlated features (a lap time and a line offset
     that rise as the value falls, correlation 0.9, as the twin's laps show): the remaining life's 90 % interval
-    must cover the true first failed lap in 0.9 ± 3 binomial standard deviations (√(0.9·0.1/200) = 2.1 %: 83.6-96.4
-    %), a false alarm about 0.3 % of the time for a calibrated filter."""
+    must cover the true first failed lap in at least 0.9 − 3 binomial standard deviations (√(0.9·0.1/200) = 2.1 %:
+    83.6 %), a false alarm about 0.1 % of the time for a calibrated filter, and at most 98 %: in whole laps, ends
+    included, an interval covers more than its rate where lives are a few laps long (as in the test above; it was
+    96 % with each particle's noise scale drawn once, 97 % with it on a grid)."""
     cov = np.array([[1e-4, 0.9 * 1e-2 * 5e-5], [0.9 * 1e-2 * 5e-5, 2.5e-9]])
     values = np.linspace(0.5, 1.1, 7)
     model = ObservationModel(("lap_time_s", "line_offset_m"), values,
@@ -133,7 +136,7 @@ def test_lap_by_lap_features_give_intervals_that_cover_the_truth_at_their_stated
         life = remaining_life(state, FailureModel(threshold, 1e-4, -1.0), st.q, seed=i, horizon=horizon)
         truth = next((k for k in range(1, horizon + 1) if path[30 + k][0] < threshold), math.inf)
         life_in += life.quantile(0.05) <= truth <= life.quantile(0.95)
-    assert 0.836 <= life_in / n <= 0.964, life_in / n
+    assert 0.836 <= life_in / n <= 0.98, life_in / n
 
 
 @pytest.mark.quick
@@ -152,3 +155,28 @@ def test_a_lap_the_twin_reads_weighs_the_values_by_its_features_and_a_second_cau
     assert model.misfit((7.2, 4.5e-3), (0.5, 1.1)) == pytest.approx(0.0, abs=1e-3)
     assert model.misfit((7.6, 4.0e-3), (0.5, 1.1)) > 100  # slower than wear at 0.7 gives, the line as at 1.0
     assert model.reads((7.0 * 1.2,)) and not model.reads((7.0 * 1.3,))
+
+
+def test_the_same_evidence_on_other_filter_seeds_gives_the_same_remaining_life():
+    """The forecast is the evidence's, not the Monte Carlo's. Wear that speeds up (v = 0.9 − 0.4·(lap/70)², the
+    bench's accelerating robot) read lap by lap for 31 laps through two correlated features at 1.5 times their
+    scatter; the gains fail below 0.62 (29 laps on). Six filter seeds on the same laps: their medians must agree
+    within a quarter of their median (a straight line against a curve is weighed by the evidence, and each seed's
+    weighing must come out alike). Before the noise scale was carried on a grid (4000 particles, each one's scale
+    drawn once) two such lives gave medians spread over 0.8 of themselves (29 to 55 laps)."""
+    cov = np.array([[1e-4, 0.9 * 1e-2 * 5e-5], [0.9 * 1e-2 * 5e-5, 2.5e-9]])
+    values = np.linspace(0.5, 1.1, 7)
+    model = ObservationModel(("lap_time_s", "line_offset_m"), values,
+                             np.stack([7.0 + 2.0 * (1.1 - values) ** 2, 4e-3 + 3e-3 * (1.1 - values)], axis=1),
+                             np.repeat(cov[None], len(values), axis=0))
+    st = FilterSettings(span=0.35, value_range=(0.55, 1.0), one_way=-1.0, edge_prior=0.0175)
+    failure = FailureModel(0.62, 0.01, -1.0)
+    for life_seed in (0, 1):
+        g = np.random.default_rng(life_seed)
+        obs = [LapObservation(k, tuple(model.mean(np.array([0.9 - 0.4 * (k / 70) ** 2]))[0]
+                                       + 1.5 * np.linalg.cholesky(cov) @ g.standard_normal(2))) for k in range(31)]
+        medians = []
+        for seed in range(6):
+            state = estimate((), (), 30, st, failure, seed=seed, observations=obs, model=model)
+            medians.append(remaining_life(state, failure, st.q, seed=seed + 1).quantile(0.5))
+        assert max(medians) - min(medians) <= 0.25 * float(np.median(medians)), (life_seed, medians)

@@ -73,5 +73,10 @@ def test_only_a_value_measured_less_worn_than_the_twin_moves_the_race(tmp_path, 
 
     below = forecast_failure(twin, PLAIN, aligned(0.8), seen, "motion.mu", now_lap=LAPS - 1)
     assert below.raced == first.raced
+    # another filter seed (how bench_forecast measures the Monte Carlo's own error) races nothing again: only the
+    # filter's chance moves
+    other = forecast_failure(twin, PLAIN, [], seen, "motion.mu", now_lap=LAPS - 1, filter_seed=1)
+    assert other.raced == first.raced and other.failing_value == first.failing_value
+    assert other.value_now is not None and other.band != first.band
     with pytest.raises(pytest.fail.Exception, match="raced again"):
         forecast_failure(twin, PLAIN, aligned(first.raced[0] + 0.05), seen, "motion.mu", now_lap=LAPS - 1)

@@ -219,11 +219,13 @@ def observations_of(laps: list[dict], gains: dict, now_lap: int, offset: bool) -
 
 def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], address: str,
                      now_lap: int, seeds: int = EDGE_SEEDS, seed: int = 0, lap_timeout_s: float = LAP_TIMEOUT_S,
-                     settings: FilterSettings | None = None) -> Forecast:
+                     settings: FilterSettings | None = None, filter_seed: int | None = None) -> Forecast:
     """When the ``gains`` in force first fail, from the robot's ``alignments`` of ``address`` (each with
     ``first_lap``, ``lap``, ``value``, ``interval``) and its ``laps`` (``n``, ``completed``, ``gains``,
     ``lap_time_s``, ``xte_mean_m``) up to ``now_lap``. Deterministic in its inputs and ``seed``, whatever their
-    order."""
+    order. ``filter_seed`` (default ``seed``) seeds the particle filter and the Monte Carlo alone, the races kept:
+    another filter seed on the same evidence measures the estimate's own Monte Carlo error."""
+    filter_seed = seed if filter_seed is None else filter_seed
     p = twin.space.parameter(address)
     ms = [m for m in measurements_of(alignments, address) if m.lap <= now_lap]
     outs = [o for o in outcomes_of(laps, gains) if o.lap <= now_lap]
@@ -241,7 +243,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     if service is not None:  # a part that wears one way only (grip, charge): towards its service limit
         direction = service_direction(twin, address, known)
     else:  # else the way the alignments say it goes
-        first = estimate(ms, (), now_lap, settings or FilterSettings(span=float(p.upper - p.lower)), None, seed)
+        first = estimate(ms, (), now_lap, settings or FilterSettings(span=float(p.upper - p.lower)), None, filter_seed)
         direction = -1.0 if first.rate_quantiles((0.5,))[0] <= 0 else 1.0
     start, end = race_range(twin, address, known, direction)
     edge = twin_edge(twin, gains, address, start, end, direction, seed, LapLimits(timeout_s=lap_timeout_s),
@@ -286,8 +288,8 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     settings = settings or FilterSettings(span=span, value_range=(lo_range, hi_range),
                                           one_way=direction if service is not None else 0.0,
                                           edge_prior=EDGE_PRIOR * span)
-    state = estimate(kept, outs, now_lap, settings, failure, seed, obs, model)
-    life = remaining_life(state, failure, settings.q, seed + 1,
+    state = estimate(kept, outs, now_lap, settings, failure, filter_seed, obs, model)
+    life = remaining_life(state, failure, settings.q, filter_seed + 1,
                           service_limit=service[0] if service is not None else None)
     already = bool(outs) and outs[-1].failed and outs[-1].lap == now_lap
     lo, med, hi = state.quantiles()

@@ -131,11 +131,16 @@ class ObservationModel:
 
     def log_likelihood(self, features: tuple[float, ...], v: np.ndarray, scale: np.ndarray) -> np.ndarray:
         """log N(features; mean(v), scale²·covariance(v)) per particle (constants dropped)."""
-        d = len(self.names)
+        q, logdet = self.distance(features, v)
+        return -0.5 * q / scale ** 2 - len(self.names) * np.log(scale) - 0.5 * logdet
+
+    def distance(self, features: tuple[float, ...], v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(the squared Mahalanobis distance of a lap's features from what the twin gives at each value ``v``, the
+        log determinant of the covariance there): the log density at any noise scale s is
+        −½·q/s² − d·log s − ½·logdet."""
         r = np.asarray(features)[None, :] - self.mean(v)
         cov = self.covariance(v)
-        q = np.einsum("ni,nij,nj->n", r, np.linalg.inv(cov), r)
-        return -0.5 * q / scale ** 2 - d * np.log(scale) - 0.5 * np.log(np.linalg.det(cov))
+        return np.einsum("ni,nij,nj->n", r, np.linalg.inv(cov), r), np.log(np.linalg.det(cov))
 
     def pins(self, v: float) -> float:
         """How far one lap pins the parameter near ``v`` (one standard error, the parameter's unit): from the

@@ -5,22 +5,26 @@ resampling), from every measurement, every finished lap's features and every lap
 A particle is (v, r, a, s, δ): the parameter's value at the current lap, its rate of change per lap, the rate's own
 change per lap (wear that accelerates or slows: a straight line is a = 0; for a part that only wears, half the
 particles hold a = 0 and half wear ever faster, a ≥ 0 in the wear's direction, so the evidence weighs a straight
-line against a curve), how far the evidence's stated scatter is to be trusted (a scale on it, learnt from the
-evidence's own scatter), and where this robot's failure edge lies against the twin's (δ ~ N(0, width² + edge_prior²)
-a priori: the twin's edge is the prior, the robot's own finished and failed laps move it; each particle carries it
-as a distribution on a grid, updated by each lap outcome at the particle's value, so resampling for the value never
-makes it wander). From one lap to the next v ← v + r, r ← r + a + N(0, q²) (q small: what a quadratic does not
-describe; a part that only wears, grip or charge, never recovers: its rate keeps its sign), and with a small
-probability per lap (``RENEWAL``) the part is renewed: v is drawn again from the prior range, its rate kept (a tyre
-swapped, a battery charged: it wears on as before; renewals are proposed more often, near the value the lap's own
-evidence gives, and weighed back to that probability, so a renewal is followed by many particles, not a lucky few).
+line against a curve), how far the evidence's stated scatter is to be trusted (a scale s on it, log-uniform over
+``SCALE_PRIOR`` a priori, learnt from the evidence's own scatter), and where this robot's failure edge lies against
+the twin's (δ ~ N(0, width² + edge_prior²) a priori: the twin's edge is the prior, the robot's own finished and
+failed laps move it). s and δ never change from lap to lap: drawn once per particle, resampling for the value
+collapsed them onto a few values, a different few for each seed, and the forecast moved with the seed (the same
+evidence gave a robot 13 or 39 laps to live). So each particle carries each of them as a distribution on a grid
+(Rao-Blackwellised), s updated by each measurement and lap's features at the particle's value, δ by each lap
+outcome, and weighs the evidence averaged over its own distribution. From one lap to the next v ← v + r,
+r ← r + a + N(0, q²) (q small: what a quadratic does not describe; a part that only wears, grip or charge, never
+recovers: its rate keeps its sign), and with a small probability per lap (``RENEWAL``) the part is renewed: v is
+drawn again from the prior range, its rate kept (a tyre swapped, a battery charged: it wears on as before; renewals
+are proposed more often, near the value the lap's own evidence gives, and weighed back to that probability, so a
+renewal is followed by many particles, not a lucky few).
 A measurement of laps a..b weighs a particle by the normal density of the measured value around the particle's mean
 over those laps (v − r·(b − a)/2), with standard error s·σ; a finished lap's features by the observation model's
 density at v, covariance s²·Σ; a lap outcome by the failure model's probability (with a small chance ``SURPRISE`` of
 a failure, or a finish, that the parameter does not explain, so that one odd lap cannot overrule everything else).
 When the effective number of particles falls below half, they are resampled (systematic) and moved by a multivariate
-Liu-West kernel (v, r, a, log s shrunk towards their mean and jittered with their own covariance, so their spread
-and how they move together are kept), so they do not collapse to a few values.
+Liu-West kernel (v, r, a shrunk towards their mean and jittered with their own covariance, so their spread and how
+they move together are kept), so they do not collapse to a few values.
 
 The priors scale with ``span``: the distance the forecast cares about (from the value now to where the gains fail).
 
@@ -38,7 +42,7 @@ import numpy as np
 
 from tuner.prognostics.evidence import FailureModel, LapObservation, Measurement, ObservationModel, Outcome
 
-PARTICLES = 4000
+PARTICLES = 16000  # 4000 until 2026-11-28: a robot's median life moved by a fifth of itself with the seed
 SURPRISE = 0.02  # chance of a lap outcome the parameter does not explain
 RATE_PRIOR = 0.05  # the prior rate's standard deviation, per lap, as a fraction of the span
 ACCEL_PRIOR = 2e-3  # the prior acceleration's standard deviation, per lap², as a fraction of the span
@@ -47,6 +51,7 @@ RENEWAL = 2e-3  # chance per lap that the part is renewed (its value drawn again
 RENEWAL_PROPOSED = 0.03  # … proposed this often, near where the lap's evidence puts it, and weighed back
 SCALE_PRIOR = (1.0, 3.0)  # the noise scale s, log-uniform between these: a robot scatters no less than the twin
 SHIFT_GRID = 33  # the robot's edge against the twin's: ± 4 prior sd in this many steps
+SCALE_GRID = 17  # the noise scale s: log-uniform over SCALE_PRIOR in this many steps
 LIU_WEST = 0.98  # the kernel's shrinkage towards the mean at a resampling (√(1 − 0.98²) ≈ 0.2 of the spread)
 
 
@@ -166,6 +171,22 @@ def _draw(n: int, prior: tuple[float, float], near: tuple[float, float] | None,
     return v, logw
 
 
+def _by_scale(logw: np.ndarray, log_p: np.ndarray, lik: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A piece of evidence whose log likelihood at each noise scale of the grid is ``lik`` (n, SCALE_GRID): each
+    particle weighed by it averaged over its belief in the scale, and that belief updated."""
+    belief = log_p - log_p.max(axis=1, keepdims=True)
+    both = belief + lik
+    top = both.max(axis=1, keepdims=True)
+    logw = logw + (top[:, 0] + np.log(np.exp(both - top).sum(axis=1))) - np.log(np.exp(belief).sum(axis=1))
+    return logw, both - top
+
+
+def _pick(log_b: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """For each row of log beliefs over a grid, a grid index drawn from it."""
+    cb = np.cumsum(np.exp(log_b - log_b.max(axis=1, keepdims=True)), axis=1)
+    return np.minimum((cb < rng.random(len(log_b))[:, None] * cb[:, -1:]).sum(axis=1), log_b.shape[1] - 1)
+
+
 def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], until_lap: int,
              settings: FilterSettings, failure: FailureModel | None = None, seed: int = 0,
              observations: Sequence[LapObservation] = (), model: ObservationModel | None = None) -> DegradationState:
@@ -195,7 +216,10 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
     if settings.one_way:  # half the particles wear in a straight line, half speed up (a worn part wears faster)
         curved = rng.random(n) < 0.5
         a = np.where(curved, settings.one_way * np.abs(a), 0.0)
-    log_s = rng.uniform(math.log(SCALE_PRIOR[0]), math.log(SCALE_PRIOR[1]), n)
+    # the noise scale, per particle as a distribution on a grid too (Rao-Blackwellised): drawn once per particle,
+    # resampling collapsed it onto a few values, a different few for each seed, and the forecast with it (issue 35)
+    scales = np.exp(np.linspace(math.log(SCALE_PRIOR[0]), math.log(SCALE_PRIOR[1]), SCALE_GRID))
+    log_p = np.zeros((n, SCALE_GRID))
     shift_sd = math.hypot(failure.width, settings.edge_prior) if failure is not None else 0.0
     # the robot's edge against the twin's, per particle as a distribution on a grid (Rao-Blackwellised): only lap
     # outcomes inform it, and drawn once per particle it would wander with every resampling meant for the value
@@ -225,13 +249,13 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
                 v = np.where(renewed, fresh, v)
                 logw = logw + np.where(renewed, fresh_logw + math.log(settings.renewal / RENEWAL_PROPOSED),
                                        math.log((1 - settings.renewal) / (1 - RENEWAL_PROPOSED)))
-        s = np.exp(log_s)
         for m in by_lap.get(lap, ()):
-            sd = s * m.sigma
-            mean = v - r * (m.lap - m.first_lap) / 2
-            logw += -0.5 * ((m.value - mean) / sd) ** 2 - np.log(sd)
+            z2 = ((m.value - (v - r * (m.lap - m.first_lap) / 2)) / m.sigma) ** 2
+            logw, log_p = _by_scale(logw, log_p, -0.5 * z2[:, None] / scales ** 2 - np.log(scales * m.sigma))
         for o in seen.get(lap, ()):
-            logw += model.log_likelihood(o.features, v, s)
+            d2, logdet = model.distance(o.features, v)
+            logw, log_p = _by_scale(logw, log_p, -0.5 * d2[:, None] / scales ** 2 - len(model.names) *
+                                    np.log(scales) - 0.5 * logdet[:, None])
         for o in outs.get(lap, ()):
             p = settings.surprise + (1 - 2 * settings.surprise) * failure.p_fail(v[:, None], edges[None, :])
             lik = p if o.failed else 1 - p
@@ -243,24 +267,21 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
         band.append((lap, *weighted_quantiles(v, w, (0.05, 0.5, 0.95))))
         if 1.0 / np.sum(w ** 2) < n / 2:
             idx = systematic_resample(w, rng)
-            v, r, a, log_s, curved, log_q = v[idx], r[idx], a[idx], log_s[idx], curved[idx], log_q[idx]
-            for group, cols in ((curved, (v, r, a, log_s)), (~curved, (v, r, log_s))):
+            v, r, a, curved, log_q, log_p = v[idx], r[idx], a[idx], curved[idx], log_q[idx], log_p[idx]
+            for group, cols in ((curved, (v, r, a)), (~curved, (v, r))):
                 if group.sum() > len(cols):
                     moved = _liu_west(np.stack([c[group] for c in cols], axis=1), rng)
                     for j, c in enumerate(cols):
                         c[group] = moved[:, j]
             r = one_way(r, settings.one_way)
-            log_s = np.clip(log_s, math.log(SCALE_PRIOR[0]), math.log(SCALE_PRIOR[1]))  # the kernel keeps to the prior
             if settings.one_way:
                 a = settings.one_way * np.abs(a)
             logw = np.zeros(n)
     w = np.exp(logw - logw.max())
     w /= w.sum()
     idx = systematic_resample(w, rng)  # equally weighted particles for the prediction
-    v, r, a, log_s, log_q = v[idx], r[idx], a[idx], log_s[idx], log_q[idx]
-    # each particle's edge drawn from its own distribution (within a grid step)
-    cq = np.cumsum(np.exp(log_q - log_q.max(axis=1, keepdims=True)), axis=1)
-    pick = np.minimum((cq < rng.random(n)[:, None] * cq[:, -1:]).sum(axis=1), SHIFT_GRID - 1)
+    v, r, a, log_q, log_p = v[idx], r[idx], a[idx], log_q[idx], log_p[idx]
+    # each particle's edge and noise scale drawn from its own distribution (the edge within a grid step)
     step = edges[1] - edges[0] if SHIFT_GRID > 1 else 0.0
-    shift = edges[pick] + step * (rng.random(n) - 0.5)
-    return DegradationState(band[-1][0], v, r, np.exp(log_s), shift, band, a, settings.one_way)
+    shift = edges[_pick(log_q, rng)] + step * (rng.random(n) - 0.5)
+    return DegradationState(band[-1][0], v, r, scales[_pick(log_p, rng)], shift, band, a, settings.one_way)
