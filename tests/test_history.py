@@ -223,9 +223,12 @@ def test_the_forecast_filters_the_evidence_and_races_the_gains_on_the_twin():
     lo, hi = f.interval
     assert lo <= straight <= (hi if hi is not None else float("inf")) and 0 < f.laps_to_failure <= straight + 1
     assert f.quantiles["5"] == lo and f.quantiles["95"] == hi and f.quantiles["50"] == f.laps_to_failure
-    upper = f"{hi:.0f}" if hi is not None else "more than 1000"
-    assert f.statement == (f"the gains in force stop finishing in about {f.laps_to_failure:.0f} laps (90 % between "
-                           f"{lo:.0f} and {upper})")
+    up = f"{hi:.0f}" if hi is not None else "more than 1000"
+    said = f"the gains in force stop finishing in about {f.laps_to_failure:.0f} laps (90 % between {lo:.0f} and {up})"
+    s, c = f.shapes["straight"], f.shapes["speeding_up"]  # where both shapes hold futures, both are said
+    assert f.statement in (said, f"{said}; the laps cannot tell yet whether the wear speeds up: at its pace, about "
+                           f"{s['median']:.0f} laps ({s['share']:.0%} of the futures); speeding up, about "
+                           f"{c['median']:.0f} ({c['share']:.0%})")
     # the laps carry no lap time here: the alignments are the evidence
     assert f.evidence == {"alignments": 3, "laps": 26, "failed": 0, "timed_laps": 0, "observed_laps": 0, "features": [],
                           "alignments_used": 3}

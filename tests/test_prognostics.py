@@ -12,7 +12,8 @@ import pytest
 from scipy.stats import norm
 
 from tuner.prognostics import (FailureModel, FilterSettings, LapObservation, Measurement, ObservationModel, Outcome,
-                               estimate, life_sentence, measurement_sigma, remaining_life)
+                               RemainingLife, estimate, life_sentence, measurement_sigma, remaining_life,
+                               shape_sentence)
 from tuner.prognostics.particle_filter import SCALE_PRIOR, DegradationState
 
 
@@ -32,6 +33,24 @@ def test_the_failure_model_is_the_normal_cdf_and_a_certain_wear_fails_on_the_lap
     rising = DegradationState(0, np.full(8, 1.0), np.full(8, 0.01), np.ones(8), np.zeros(8), [])
     never = remaining_life(rising, FailureModel(0.905, 1e-6, -1.0), q=0.0, horizon=50)
     assert never.quantiles()["50"] is None and "not expected to stop finishing within 50 laps" in life_sentence(never)
+
+
+@pytest.mark.quick
+def test_futures_in_two_humps_are_read_as_both_shapes_of_wear():
+    """70 futures wearing at their pace fail in 80 laps, 30 that speed up in 30 (hand-built): the median, 80, says
+    little of the 30; the sentence gives both. One shape with 95 % of the futures, or two that agree, or a part whose
+    shape was not weighed: nothing to add."""
+    curved = np.arange(100) >= 70
+    life = RemainingLife(np.where(curved, 30.0, 80.0), 1000, None, curved)
+    assert life.by_shape() == {"straight": {"share": 0.7, "median": 80.0}, "speeding_up": {"share": 0.3, "median": 30.0}}
+    assert shape_sentence(life) == ("the laps cannot tell yet whether the wear speeds up: at its pace, about 80 laps "
+                                    "(70% of the futures); speeding up, about 30 (30%)")
+    few = np.arange(100) >= 95
+    assert shape_sentence(RemainingLife(np.where(few, 30.0, 80.0), 1000, None, few)) is None
+    assert shape_sentence(RemainingLife(np.where(curved, 70.0, 80.0), 1000, None, curved)) is None
+    assert shape_sentence(RemainingLife(np.where(curved, 30.0, 80.0), 1000)) is None
+    never = RemainingLife(np.where(curved, 30.0, np.inf), 1000, None, curved)
+    assert "at its pace, more than 1000 laps" in shape_sentence(never)
 
 
 @pytest.mark.quick

@@ -34,7 +34,8 @@ import numpy as np
 
 from tuner.history.trend import measured
 from tuner.prognostics import (FilterSettings, LapObservation, Measurement, ObservationModel, Outcome, estimate,
-                               life_sentence, measurement_sigma, remaining_life, retune_advice, service_advice)
+                               life_sentence, measurement_sigma, remaining_life, retune_advice, service_advice,
+                               shape_sentence)
 from tuner.prognostics.particle_filter import SCALE_PRIOR
 from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
 from tuner.history.twin_edge import twin_edge
@@ -79,6 +80,7 @@ class Forecast:
     advice: tuple[str, ...]
     note: str
     misfit: float | None = None  # the last laps' mean distance from what wear of this parameter alone gives
+    shapes: dict | None = None  # a part that only wears: {"straight"|"speeding_up": {"share", "median"}} of the futures
 
     def summary(self) -> dict:
         return dataclasses.asdict(self)
@@ -304,6 +306,9 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
                       f"{address}={failure.threshold:.4g})")
     else:
         statement = life_sentence(life)
+        humps = shape_sentence(life)
+        if humps:
+            statement = f"{statement}; {humps}"
         q = life.quantiles()
         laps_to, interval = q["50"], (q["5"], q["95"])
         retune = retune_advice(life, address, failure.threshold)
@@ -319,4 +324,4 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
             f"laps fail at {failure.threshold:.4g} (the first failure raced at {failing:.4g})")
     return Forecast(address, now_lap, statement, med, (lo, hi), state.rate_quantiles(), failure.threshold, laps_to,
                     interval, life.quantiles(), (start, end), raced, evidence, tuple(state.band), tuple(advice), note,
-                    misfit)
+                    misfit, life.by_shape())

@@ -7,9 +7,9 @@ from tuner.prognostics.evidence import (FailureModel, LapObservation, Measuremen
                                         measurement_sigma)
 from tuner.prognostics.particle_filter import DegradationState, FilterSettings, estimate
 from tuner.prognostics.monte_carlo import HORIZON, RemainingLife, remaining_life
-from tuner.prognostics.statement import RETUNE_WITHIN, life_sentence, retune_advice, service_advice
+from tuner.prognostics.statement import RETUNE_WITHIN, life_sentence, retune_advice, service_advice, shape_sentence
 
 __all__ = ["DegradationState", "FailureModel", "FilterSettings", "HORIZON", "LapObservation", "Measurement",
            "ObservationModel", "Outcome", "RETUNE_WITHIN",
            "RemainingLife", "estimate", "life_sentence", "measurement_sigma", "remaining_life", "retune_advice",
-           "service_advice"]
+           "service_advice", "shape_sentence"]

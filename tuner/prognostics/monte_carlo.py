@@ -29,6 +29,8 @@ class RemainingLife:
     laps: np.ndarray  # (futures,) 1 = the next lap fails
     horizon: int
     service_laps: np.ndarray | None = None  # (futures,) laps until the service limit is reached (0: already)
+    speeding_up: np.ndarray | None = None  # (futures,) does this future's wear speed up (None: not a part that only
+    # wears, whose filter weighs a straight line against a curve)
 
     def quantile(self, q: float) -> float:
         x = float(np.quantile(self.laps, q, method="inverted_cdf"))
@@ -41,6 +43,19 @@ class RemainingLife:
     def within(self, laps: float) -> float:
         """The probability that the first failure comes within ``laps`` laps."""
         return float(np.mean(self.laps <= laps))
+
+    def by_shape(self) -> dict | None:
+        """{"straight": …, "speeding_up": …}, each {"share": of the futures, "median": laps (None: beyond the
+        horizon, or no such future)}; None when the wear's shape was not weighed."""
+        if self.speeding_up is None:
+            return None
+        out = {}
+        for name, these in (("straight", ~self.speeding_up), ("speeding_up", self.speeding_up)):
+            laps = self.laps[these]
+            median = float(np.quantile(laps, 0.5, method="inverted_cdf")) if len(laps) else math.inf
+            out[name] = {"share": float(np.mean(these)), "median": _finite(median if median <= self.horizon
+                                                                           else math.inf)}
+        return out
 
     def service_median(self) -> float | None:
         if self.service_laps is None:
@@ -75,4 +90,4 @@ def remaining_life(state: DegradationState, failure: FailureModel, q: float, see
             service[np.isinf(service) & (failure.direction * (v - service_limit) >= 0)] = k
         if not alive.any() and (service is None or not np.isinf(service).any()):
             break
-    return RemainingLife(first, horizon, service)
+    return RemainingLife(first, horizon, service, (a != 0) if state.one_way else None)
