@@ -51,10 +51,8 @@ class RemainingLife:
             return None
         out = {}
         for name, these in (("straight", ~self.speeding_up), ("speeding_up", self.speeding_up)):
-            laps = self.laps[these]
-            median = float(np.quantile(laps, 0.5, method="inverted_cdf")) if len(laps) else math.inf
-            out[name] = {"share": float(np.mean(these)), "median": _finite(median if median <= self.horizon
-                                                                           else math.inf)}
+            median = RemainingLife(self.laps[these], self.horizon).quantile(0.5) if these.any() else math.inf
+            out[name] = {"share": float(np.mean(these)), "median": _finite(median)}
         return out
 
     def service_median(self) -> float | None:

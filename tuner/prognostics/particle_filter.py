@@ -171,9 +171,10 @@ def _draw(n: int, prior: tuple[float, float], near: tuple[float, float] | None,
     return v, logw
 
 
-def _by_scale(logw: np.ndarray, log_p: np.ndarray, lik: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A piece of evidence whose log likelihood at each noise scale of the grid is ``lik`` (n, SCALE_GRID): each
-    particle weighed by it averaged over its belief in the scale, and that belief updated."""
+def _on_grid(logw: np.ndarray, log_p: np.ndarray, lik: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A piece of evidence whose log likelihood at each point of a particle's grid (its noise scale, its edge) is
+    ``lik`` (n, grid): each particle weighed by it averaged over its belief ``log_p`` on the grid, and that belief
+    updated."""
     belief = log_p - log_p.max(axis=1, keepdims=True)
     both = belief + lik
     top = both.max(axis=1, keepdims=True)
@@ -251,17 +252,14 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
                                        math.log((1 - settings.renewal) / (1 - RENEWAL_PROPOSED)))
         for m in by_lap.get(lap, ()):
             z2 = ((m.value - (v - r * (m.lap - m.first_lap) / 2)) / m.sigma) ** 2
-            logw, log_p = _by_scale(logw, log_p, -0.5 * z2[:, None] / scales ** 2 - np.log(scales * m.sigma))
+            logw, log_p = _on_grid(logw, log_p, -0.5 * z2[:, None] / scales ** 2 - np.log(scales * m.sigma))
         for o in seen.get(lap, ()):
             d2, logdet = model.distance(o.features, v)
-            logw, log_p = _by_scale(logw, log_p, -0.5 * d2[:, None] / scales ** 2 - len(model.names) *
+            logw, log_p = _on_grid(logw, log_p, -0.5 * d2[:, None] / scales ** 2 - len(model.names) *
                                     np.log(scales) - 0.5 * logdet[:, None])
         for o in outs.get(lap, ()):
             p = settings.surprise + (1 - 2 * settings.surprise) * failure.p_fail(v[:, None], edges[None, :])
-            lik = p if o.failed else 1 - p
-            belief = np.exp(log_q - log_q.max(axis=1, keepdims=True))
-            logw += np.log((belief * lik).sum(axis=1) / belief.sum(axis=1))
-            log_q += np.log(lik)
+            logw, log_q = _on_grid(logw, log_q, np.log(p if o.failed else 1 - p))
         w = np.exp(logw - logw.max())
         w /= w.sum()
         band.append((lap, *weighted_quantiles(v, w, (0.05, 0.5, 0.95))))
