@@ -1,8 +1,8 @@
 """A prognostics benchmark: ageing robots (``emulate --drift``, plainly tuned gains, each its own noise seed) watched
 by plain ``live`` for scenario × seed, each robot run to its real first failed lap; then, from what ``live``
 recorded (its alignments, stamped with the laps they measured, and the robot's laps: lap time, the line's mean
-offset), ``history``'s forecast (:func:`tuner.history.forecast_failure` for each part that wears, the soonest, as
-``history`` says it) made at several points of life, against the lap the robot first failed.
+offset), ``history``'s forecast (:func:`tuner.history.two_causes.forecasts_of`: each part that wears and, when
+no one explains the laps, both at once; the soonest, as ``history`` says it) made at several points of life, against the lap the robot first failed.
 
 The metrics of the field (the definitions of Saxena et al. 2010, as ProgPy's ``progpy.metrics`` computes them;
 written out here on plain numbers so the benchmark needs neither ProgPy's containers nor its import time):
@@ -41,11 +41,12 @@ import sys
 import tempfile
 import time
 
-from tuner.history import forecast_failure, log_laps
+from tuner.history import log_laps
 from tuner.history.forecast import MIN_TIMED_LAPS, SERVICE
 from tuner.history.ingest import cross_track
 from tuner.history.report import soonest
 from tuner.history import twin_edge
+from tuner.history.two_causes import forecasts_of as history_forecasts
 from twin.core.digital_twin import DigitalTwin
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
@@ -114,8 +115,8 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
 
     def forecast(now, filter_seed=None):
         t0 = time.perf_counter()
-        f = soonest([forecast_failure(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], cause,
-                                       now_lap=now, seed=seed, filter_seed=filter_seed) for cause in CAUSES])
+        f = soonest(history_forecasts(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], CAUSES,
+                                      now, seed=seed, filter_seed=filter_seed).values())
         return f, time.perf_counter() - t0
 
     for now in at:

@@ -10,11 +10,12 @@ import numpy as np
 
 from tuner.align.lap_time import align_lap_time
 from tuner.history import forecast_failure
-from tuner.history.twin_edge import line_offset_m
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
 from twin.link.emulator import Drift
+
+from stand_in import robot_laps
 
 # held fixed on purpose, not the tuner's answer today (the plain_gains fixture): the scenario (its seeds, its drift)
 # is built on where these gains fail, below μ ≈ 0.75, and a calibrated interval may miss one scenario in ten, so
@@ -49,25 +50,13 @@ def test_the_stated_interval_holds_the_hidden_drifts_first_failure():
     assert lo <= truth <= (hi if hi is not None else float("inf")), (f.statement, truth, alignments)
 
 
-def _robot(twin, drifts: list[str], laps: int, first_seed: int) -> list[dict]:
-    """A stand-in robot's laps as the history holds them: lap time and the line's mean offset from its telemetry
-    (every 5th control tick, as emulate sends it), on the PLAIN gains."""
-    ds = [Drift.parse(d, twin) for d in drifts]
-    runs = run_laps(twin, [{**PLAIN, **{d.address: d.at(k) for d in ds}} for k in range(laps)],
-                    seed=[first_seed + k for k in range(laps)])
-    pitch = twin.space.get("sensor.pitch")
-    return [{"n": k, "completed": r.completed, "gains": PLAIN, "lap_time_s": r.lap_time_s,
-             "xte_mean_m": line_offset_m(r.trace.column("position")[::5], r.trace.count, pitch)
-             if r.trace is not None else None} for k, r in enumerate(runs)]
-
-
 def test_read_lap_by_lap_the_stated_interval_holds_a_hidden_drifts_first_failure_and_the_order_does_not_matter():
     """Grip wearing along a drift the benchmark does not use (linear, 0.92 → 0.62 over 60 laps), read from every
     lap's time and line offset, no alignment at all: at a third and at two thirds of the life the stated 90 %
     interval holds the first failed lap; the same laps in another order give the same forecast bit for bit."""
     twin = DigitalTwin()
     twin.model()
-    laps = _robot(twin, ["motion.mu=0.92:0.62@60"], 60, 700)
+    laps = robot_laps(twin, PLAIN, ["motion.mu=0.92:0.62@60"], 60, 700)
     first_failed = next((k for k, r in enumerate(laps) if not r["completed"]), None)
     assert first_failed is not None and 25 < first_failed < 60, first_failed  # decidable: seen within the run
     for now in (first_failed // 3, 2 * first_failed // 3):
@@ -89,7 +78,7 @@ def test_two_causes_at_once_grip_alone_does_not_explain_and_the_battery_that_doe
 
     twin = DigitalTwin()
     twin.model()
-    laps = _robot(twin, ["motion.mu=0.9:0.7@40", "motor.supply_voltage=6.0:3.8@40"], 40, 800)
+    laps = robot_laps(twin, PLAIN, ["motion.mu=0.9:0.7@40", "motor.supply_voltage=6.0:3.8@40"], 40, 800)
     first_failed = next((k for k, r in enumerate(laps) if not r["completed"]), None)
     assert first_failed is not None and first_failed > 28, first_failed  # decidable: seen within the run, late
     now = 23

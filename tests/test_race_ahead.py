@@ -13,6 +13,7 @@ from reference_gains import set_flags
 from tuner.history import forecast_failure
 from tuner.history import twin_edge as te
 from tuner.history.forecast import SERVICE
+from tuner.history.two_causes import ROWS
 from twin.cli.main import main
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
@@ -42,7 +43,9 @@ def test_live_runs_ahead_the_races_history_reads(tmp_path, capsys, monkeypatch):
     assert code == 0, err
     assert json.loads(out)["race_ahead"]["state"] == "done", out
     ahead = races(cache)
-    assert len(ahead) == len(SERVICE)  # one race per part that wears, and no half-written entry beside them
+    # one race per part that wears, the rows of both at once but the first (the first part's race alone), and no
+    # half-written entry beside them
+    assert len(ahead) == len(SERVICE) + ROWS - 1
     # history, a new process with the world flags alone (the gains come from the robot's laps): it reads them
     te.forget_races()
     monkeypatch.setattr(te, "_twin_edge", lambda *a: pytest.fail("history raced the twin again"))

@@ -191,10 +191,13 @@ def save_history(save: str | None, view: bool, entries: Sequence[dict]) -> str |
                     _series(rec, f"history/{robot}/aligned/{address}", [rr.TimeColumn("lap", sequence=[a["lap"] for a in pts])],
                             [a["value"] for a in pts])
             for address, f in (e.get("forecasts") or {}).items():  # the filter's estimate and its 90 % band
-                if f.get("band"):
-                    laps = [rr.TimeColumn("lap", sequence=[b[0] for b in f["band"]])]
+                bands = [(address, f["band"])] if f.get("band") else []
+                bands += [(f"{c}_with_{'+'.join(o for o in f['causes'] if o != c)}", x["band"])  # both at once
+                          for c, x in (f.get("causes") or {}).items() if x.get("band")]
+                for name_of, band in bands:
+                    laps = [rr.TimeColumn("lap", sequence=[b[0] for b in band])]
                     for k, name in ((1, "q05"), (2, "median"), (3, "q95")):
-                        _series(rec, f"history/{robot}/aligned/{address}_estimate/{name}", laps, [b[k] for b in f["band"]])
+                        _series(rec, f"history/{robot}/aligned/{name_of}_estimate/{name}", laps, [b[k] for b in band])
                 failed = [r["n"] for r in e["lap_times"] if not r["completed"]]
                 if failed and f.get("failing_value") is not None:
                     _series(rec, f"history/{robot}/aligned/{address}_failed_laps", [rr.TimeColumn("lap", sequence=failed)],

@@ -51,6 +51,9 @@ def _parameter(ax, entry: dict) -> None:
         ax.text(0.5, 0.5, "no alignment yet", ha="center", va="center", transform=ax.transAxes)
         return
     f = entry.get("forecast")
+    if f and f.get("causes"):  # both at once: the first cause's estimate (its edge moves with the other's value)
+        address = next(iter(f["causes"]))
+        f = {**f, "address": address, "band": f["causes"][address]["band"]}
     address = f["address"] if f else entry["alignments"][0]["address"]
     points = [a for a in entry["alignments"] if a["address"] == address and a["value"] is not None
               and not a.get("estimated")]

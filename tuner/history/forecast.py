@@ -81,6 +81,8 @@ class Forecast:
     note: str
     misfit: float | None = None  # the last laps' mean distance from what wear of this parameter alone gives
     shapes: dict | None = None  # a part that only wears: {"straight"|"speeding_up": {"share", "median"}} of the futures
+    causes: dict | None = None  # two causes at once (:mod:`tuner.history.two_causes`): per address its value_now,
+    # value_band, rate and band, as the fields above give them for one
 
     def summary(self) -> dict:
         return dataclasses.asdict(self)
@@ -189,7 +191,7 @@ def outcomes_of(laps: list[dict], gains: dict) -> list[Outcome]:
     return [Outcome(int(r["n"]), not r["completed"]) for r in laps if same_gains(r.get("gains"), gains)]
 
 
-def _no_number(address: str, now_lap: int, statement: str, evidence: dict, note: str, band=()) -> Forecast:
+def no_number(address: str, now_lap: int, statement: str, evidence: dict, note: str, band=()) -> Forecast:
     return Forecast(address, now_lap, statement, None, None, None, None, None, None, None, None, 0, evidence,
                     tuple(band), (), note)
 
@@ -230,14 +232,14 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     filter_seed = seed if filter_seed is None else filter_seed
     p = twin.space.parameter(address)
     ms = [m for m in measurements_of(alignments, address) if m.lap <= now_lap]
-    outs = [o for o in outcomes_of(laps, gains) if o.lap <= now_lap]
+    outs = sorted((o for o in outcomes_of(laps, gains) if o.lap <= now_lap), key=lambda o: (o.lap, o.failed))
     timed = observations_of(laps, gains, now_lap, offset=False)
     evidence = {"alignments": len(ms), "laps": len(outs), "failed": sum(o.failed for o in outs),
                 "timed_laps": len(timed)}
     service = SERVICE.get(address)
     enough_laps = service is not None and len(timed) >= MIN_TIMED_LAPS
     if len({m.lap for m in ms}) < MIN_MEASURED_LAPS and not enough_laps:
-        return _no_number(address, now_lap, f"too little evidence to forecast {address}: {len(ms)} alignment(s) of it "
+        return no_number(address, now_lap, f"too little evidence to forecast {address}: {len(ms)} alignment(s) of it "
                           f"at different laps and {len(timed)} timed lap(s) on the gains in force (at least "
                           f"{MIN_MEASURED_LAPS} alignments at different laps, or {MIN_TIMED_LAPS} timed laps of a part "
                           f"that wears one way, are needed)", evidence, "too little evidence")
@@ -253,7 +255,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     failure, failing, raced = edge.failure, edge.failing, edge.laps
     if failure is None:
         return dataclasses.replace(
-            _no_number(address, now_lap, f"the gains in force finish every lap the twin raced for {address} from "
+            no_number(address, now_lap, f"the gains in force finish every lap the twin raced for {address} from "
                        f"{start:.4g} to {end:.4g}: no failure to forecast", evidence,
                        "no failure within the range raced"),
             raced=(start, end), laps=raced)
@@ -271,7 +273,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     misfit = one_cause_misfit(model, obs, (min(start, end), max(start, end))) if obs else None
     if misfit is not None and misfit > MISFIT_LIMIT:
         return dataclasses.replace(
-            _no_number(address, now_lap, f"the robot's last {MISFIT_WINDOW} laps changed in a way wear of {address} "
+            no_number(address, now_lap, f"the robot's last {MISFIT_WINDOW} laps changed in a way wear of {address} "
                        f"alone does not explain (their {' and '.join(model.names)} disagree: {misfit:.3g} against "
                        f"at most {MISFIT_LIMIT:.3g}): another cause is at work, or more than one; no number for "
                        f"{address}", evidence, "not explained by one cause"),
@@ -282,7 +284,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     kept = [m for m in measurements_of(alignments, address, edge.value_sd_per_lap()) if m.lap <= now_lap
             and m.lap < before]
     if not kept and not obs:
-        return _no_number(address, now_lap, f"too little evidence to forecast {address}: no alignment and no lap "
+        return no_number(address, now_lap, f"too little evidence to forecast {address}: no alignment and no lap "
                           "the twin can read", evidence, "too little evidence")
     span = max(abs(start - failure.threshold), 1e-3 * max(abs(start), 1.0))
     lo_range = min(start, failure.threshold) - 0.5 * span

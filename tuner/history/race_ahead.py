@@ -1,7 +1,8 @@
 """The twin's races of a robot's gains, run ahead in a background process while the robot laps.
 
 A forecast (:func:`tuner.history.forecast_failure`) rests on races of the gains in force on the twin, one per part
-that wears: about 150 laps each, tens of seconds on 2 cores, where a forecast is to be ready within a lap. The
+that wears: about 150 laps each, tens of seconds on 2 cores, where a forecast is to be ready within a lap; and,
+after those, the rows a forecast of both at once asks for (:func:`tuner.history.two_causes.race_plane`). The
 races depend on the twin and the gains, not on the robot's laps (:func:`tuner.history.forecast.race_range`), so
 ``live`` starts them when it starts, in a process of its own at a lower priority than its own work, and
 ``history``'s first forecast reads them from the cache folder (:mod:`tuner.history.twin_edge`). A robot needs
@@ -100,8 +101,10 @@ def main() -> int:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     twin, gains, seed = pickle.load(sys.stdin.buffer)
     from tuner.history.forecast import race_ahead
+    from tuner.history.two_causes import race_ahead_both
 
     race_ahead(twin, gains, seed)
+    race_ahead_both(twin, gains, seed)  # then the rows a forecast of both at once asks for
     return 0
 
 

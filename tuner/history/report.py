@@ -14,10 +14,11 @@ import numpy as np
 import sqlalchemy as sa
 
 from tuner.history import schema as s
-from tuner.history.forecast import MISFIT_LIMIT, SERVICE, forecast_failure
+from tuner.history.forecast import MISFIT_LIMIT, SERVICE
 from tuner.history.twin_edge import FEATURES
 from tuner.history.store import History
 from tuner.history.trend import trend_of
+from tuner.history.two_causes import forecasts_of
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.telemetry.wire import GAIN_ADDRESSES
@@ -114,8 +115,10 @@ def causes_note(forecasts: dict, aligned: list[dict]) -> str:
     if not forecasts:
         return "no cause tracked"
     unsure = sorted({a["address"] for a in aligned if a.get("identifiable") is False and not a.get("estimated")})
-    said = f"tracks {', '.join(forecasts)}, each on its own (the forecast is the soonest)"
-    checked = {a: f.misfit for a, f in forecasts.items() if f.misfit is not None}
+    both = [a for a in forecasts if "+" in a]  # two causes at once (tuner.history.two_causes)
+    alone = [a for a in forecasts if a not in both]
+    said = f"tracks {', '.join(alone)}, each on its own (the forecast is the soonest)"
+    checked = {a: forecasts[a].misfit for a in alone if forecasts[a].misfit is not None}
     if not checked:
         said += ("; the laps carry one feature (the lap time), which any one cause explains: the evidence cannot "
                  "tell them apart")
@@ -123,7 +126,8 @@ def causes_note(forecasts: dict, aligned: list[dict]) -> str:
         fits = sorted(a for a, m in checked.items() if m <= MISFIT_LIMIT)
         if not fits:
             said += (f"; no one of them alone explains the last laps' {' and '.join(FEATURES)} together: more than "
-                     "one cause is at work (or another): no number")
+                     "one cause is at work (or another)")
+            said += (f", so it tracks {' and '.join(both[0].split('+'))} together too" if both else ": no number")
         elif len(fits) == 1:
             said += f"; only {fits[0]} alone explains the last laps' {' and '.join(FEATURES)} together"
         else:
@@ -169,8 +173,7 @@ def report(history: History, twin: DigitalTwin | None, name: str | None = None, 
                 progress(f"forecasting robot {robot['name']}: filtering its evidence, racing its gains on the twin")
             # every aligned parameter, and every part that wears (read from the laps themselves)
             causes = sorted(set(entry["trends"]) | set(SERVICE))
-            entry["forecasts"] = {a: forecast_failure(twin, gains, aligned, laps, a, laps[-1]["n"], seed=seed)
-                                  for a in causes}
+            entry["forecasts"] = forecasts_of(twin, gains, aligned, laps, causes, laps[-1]["n"], seed=seed)
             f = soonest(entry["forecasts"].values())
             entry["causes_tracked"] = causes
             entry["causes_note"] = causes_note(entry["forecasts"], aligned)

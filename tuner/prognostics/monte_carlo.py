@@ -28,7 +28,8 @@ class RemainingLife:
     """Laps after the last lap seen to the first failed lap, per future (``inf`` beyond the horizon)."""
     laps: np.ndarray  # (futures,) 1 = the next lap fails
     horizon: int
-    service_laps: np.ndarray | None = None  # (futures,) laps until the service limit is reached (0: already)
+    service_laps: np.ndarray | None = None  # (futures,) laps until the service limit is reached (0: already);
+    # with two causes (futures, 2), each its own
     speeding_up: np.ndarray | None = None  # (futures,) does this future's wear speed up (None: not a part that only
     # wears, whose filter weighs a straight line against a curve)
 
@@ -55,10 +56,11 @@ class RemainingLife:
             out[name] = {"share": float(np.mean(these)), "median": _finite(median)}
         return out
 
-    def service_median(self) -> float | None:
+    def service_median(self, dim: int = 0) -> float | None:
         if self.service_laps is None:
             return None
-        x = float(np.quantile(self.service_laps, 0.5, method="inverted_cdf"))
+        laps = self.service_laps if self.service_laps.ndim == 1 else self.service_laps[:, dim]
+        x = float(np.quantile(laps, 0.5, method="inverted_cdf"))
         return None if x > self.horizon else x
 
 
@@ -66,26 +68,29 @@ def _finite(x: float) -> float | None:
     return None if math.isinf(x) else x
 
 
-def remaining_life(state: DegradationState, failure: FailureModel, q: float, seed: int = 0,
-                   horizon: int = HORIZON, service_limit: float | None = None) -> RemainingLife:
+def remaining_life(state: DegradationState, failure: FailureModel, q: float | np.ndarray, seed: int = 0,
+                   horizon: int = HORIZON, service_limit: float | np.ndarray | None = None) -> RemainingLife:
     """The distribution of laps to the first failure from ``state`` (its last lap), rate walk ``q`` [unit per lap
-    per lap]; with a ``service_limit`` (on the failing side) also when it is reached."""
+    per lap]; with a ``service_limit`` (on the failing side) also when it is reached. Two causes at once: ``state``
+    and ``failure`` over their plane, ``q`` and ``service_limit`` one per cause."""
     rng = np.random.default_rng(seed)
     v, r, a = state.value.copy(), state.rate.copy(), state.acceleration
     n = len(v)
     first = np.full(n, np.inf)
     service = None
+    worn = np.asarray(failure.direction)  # the way each part wears
     if service_limit is not None:
-        service = np.where(failure.direction * (v - service_limit) >= 0, 0.0, np.inf)
+        service_limit = np.asarray(service_limit, float)
+        service = np.where(worn * (v - service_limit) >= 0, 0.0, np.inf)
     alive = np.ones(n, dtype=bool)
     for k in range(1, horizon + 1):
         v = v + r
-        r = one_way(r + a + q * rng.standard_normal(n), state.one_way)
+        r = one_way(r + a + q * rng.standard_normal(v.shape), state.one_way)
         fails = alive & (rng.random(n) < failure.p_fail(v, state.shift))
         first[fails] = k
         alive &= ~fails
         if service is not None:
-            service[np.isinf(service) & (failure.direction * (v - service_limit) >= 0)] = k
+            service[np.isinf(service) & (worn * (v - service_limit) >= 0)] = k
         if not alive.any() and (service is None or not np.isinf(service).any()):
             break
-    return RemainingLife(first, horizon, service, (a != 0) if state.one_way else None)
+    return RemainingLife(first, horizon, service, state.speeding_up if np.any(state.one_way) else None)

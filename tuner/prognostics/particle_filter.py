@@ -28,6 +28,11 @@ they move together are kept), so they do not collapse to a few values.
 
 The priors scale with ``span``: the distance the forecast cares about (from the value now to where the gains fail).
 
+Two causes at once (models over their plane: :mod:`tuner.prognostics.plane`): a particle carries each cause's value,
+rate and acceleration (each part straight or speeding up on its own), one noise scale and one edge shift; each
+combination of shapes is moved by its own Liu-West kernel. With one cause the arithmetic and the random draws are
+those of the one-cause filter, bit for bit.
+
 Everything random comes from one ``numpy.random.Generator`` seeded by the caller: the same evidence and seed give
 bit-identical particles.
 """
@@ -35,6 +40,7 @@ bit-identical particles.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from typing import Sequence
 
@@ -59,46 +65,67 @@ LIU_WEST = 0.98  # the kernel's shrinkage towards the mean at a resampling (√(
 class FilterSettings:
     """span: the distance that matters in the parameter's unit (from its value to where the gains fail), which
     scales the priors; value_range: where the value may lie a priori (and where a renewed part starts), None: the
-    first measurement ± 3 of its errors."""
-    span: float
+    first measurement ± 3 of its errors. Two causes at once (a :class:`tuner.prognostics.plane` model): ``span``,
+    ``value_range`` and ``one_way`` hold one entry per parameter, in the model's order."""
+    span: float | tuple[float, ...]
     particles: int = PARTICLES
     rate_prior: float = RATE_PRIOR
     accel_prior: float = ACCEL_PRIOR
     rate_walk: float = RATE_WALK
     renewal: float = RENEWAL
     surprise: float = SURPRISE
-    value_range: tuple[float, float] | None = None
-    one_way: float = 0.0  # a part that only wears (grip, charge): the sign its rate keeps (−1, +1); 0: either way
+    value_range: tuple | None = None
+    one_way: float | tuple[float, ...] = 0.0  # a part that only wears (grip, charge): the sign its rate keeps (−1,
+    # +1); 0: either way
     edge_prior: float = 0.0  # how far the robot's failure edge may lie from the twin's a priori (sd, the unit),
     # beside the twin's own edge width: what the twin does not model (another cause wearing too) moves it
 
     @property
-    def q(self) -> float:
-        return self.rate_walk * self.span
+    def spans(self) -> np.ndarray:
+        return np.atleast_1d(np.asarray(self.span, float))
+
+    @property
+    def signs(self) -> np.ndarray:
+        return np.broadcast_to(np.atleast_1d(np.asarray(self.one_way, float)), self.spans.shape)
+
+    @property
+    def q(self) -> float | np.ndarray:
+        """The rate's random walk per lap [unit per lap per lap]: one per parameter with two causes."""
+        return self.rate_walk * self.span if np.ndim(self.span) == 0 else self.rate_walk * self.spans
 
 
 @dataclasses.dataclass
 class DegradationState:
     """The particles at lap ``lap`` (equally weighted), and the estimate lap by lap: for each lap filtered, the
-    value's 5 %, 50 % and 95 % quantiles."""
+    value's 5 %, 50 % and 95 % quantiles (with two causes, those of each in turn)."""
     lap: int
-    value: np.ndarray  # (particles,)
-    rate: np.ndarray  # (particles,) per lap
+    value: np.ndarray  # (particles,); with two causes (particles, 2)
+    rate: np.ndarray  # the same shape, per lap
     scale: np.ndarray  # (particles,)
     shift: np.ndarray  # (particles,) the robot's failure edge against the twin's [parameter unit]
-    band: list[tuple[int, float, float, float]]  # (lap, q05, median, q95)
-    accel: np.ndarray | None = None  # (particles,) per lap²; None: 0
-    one_way: float = 0.0  # the sign the rate keeps (FilterSettings.one_way)
+    band: list[tuple]  # (lap, q05, median, q95[, q05, median, q95 of the second cause])
+    accel: np.ndarray | None = None  # the value's shape, per lap²; None: 0
+    one_way: float | np.ndarray = 0.0  # the sign the rate keeps (FilterSettings.one_way)
 
-    def quantiles(self, q=(0.05, 0.5, 0.95)) -> tuple[float, ...]:
-        return tuple(float(x) for x in np.quantile(self.value, q))
+    def quantiles(self, q=(0.05, 0.5, 0.95), dim: int = 0) -> tuple[float, ...]:
+        return tuple(float(x) for x in np.quantile(_column(self.value, dim), q))
 
-    def rate_quantiles(self, q=(0.05, 0.5, 0.95)) -> tuple[float, ...]:
-        return tuple(float(x) for x in np.quantile(self.rate, q))
+    def rate_quantiles(self, q=(0.05, 0.5, 0.95), dim: int = 0) -> tuple[float, ...]:
+        return tuple(float(x) for x in np.quantile(_column(self.rate, dim), q))
 
     @property
     def acceleration(self) -> np.ndarray:
         return np.zeros_like(self.rate) if self.accel is None else self.accel
+
+    @property
+    def speeding_up(self) -> np.ndarray:
+        """(particles,): does any part's wear speed up?"""
+        a = self.acceleration
+        return a != 0 if a.ndim == 1 else (a != 0).any(axis=1)
+
+
+def _column(x: np.ndarray, dim: int) -> np.ndarray:
+    return x if x.ndim == 1 else x[:, dim]
 
 
 def weighted_quantiles(x: np.ndarray, w: np.ndarray, q: Sequence[float]) -> list[float]:
@@ -116,9 +143,10 @@ def systematic_resample(w: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.searchsorted(cw, positions)
 
 
-def one_way(r: np.ndarray, sign: float) -> np.ndarray:
-    """The rate of a part that only wears: never against its ``sign`` (0: either way); its wear may stop."""
-    return r if not sign else np.where(sign * r < 0, 0.0, r)
+def one_way(r: np.ndarray, sign: float | np.ndarray) -> np.ndarray:
+    """The rate of a part that only wears: never against its ``sign`` (0: either way; one per column of ``r`` with
+    two causes); its wear may stop."""
+    return r if not np.any(sign) else np.where(np.asarray(sign) * r < 0, 0.0, r)
 
 
 def _liu_west(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -133,40 +161,39 @@ def _liu_west(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return LIU_WEST * x + (1 - LIU_WEST) * m + math.sqrt(1 - LIU_WEST ** 2) * jitter
 
 
-def _near(ms, obs, lap: int, model: ObservationModel | None, prior: tuple[float, float]) -> tuple[float, float] | None:
-    """Where lap ``lap``'s own evidence puts the value, and how widely to look around it: the value that best
-    explains its features (or its measurement), ± 4 of its errors at the largest noise scale; None if it has none
-    (or says too little to narrow the prior)."""
-    lo, hi = prior
+def _near(ms, obs, lap: int, model, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Where lap ``lap``'s own evidence puts the value (one per cause), and how widely to look around it: the value
+    that best explains its features (or its measurement), ± 4 of its errors at the largest noise scale; None if it
+    has none (or says too little to narrow the prior ``lo``..``hi``)."""
     here = [o for o in obs if o.lap == lap]
     centre = sd = None
     if here and model is not None:
-        centre = model.nearest(here[0].features, (lo, hi))[0]
-        sd = 4 * SCALE_PRIOR[1] * model.pins(centre)
+        found = model.nearest(here[0].features, (lo[0], hi[0]) if len(lo) == 1 else (lo, hi))[0]
+        centre, sd = np.atleast_1d(found), 4 * SCALE_PRIOR[1] * np.atleast_1d(model.pins(found))
     else:
         firsts = [m for m in ms if m.lap == lap]
         if firsts:
-            centre, sd = firsts[0].value, 4 * SCALE_PRIOR[1] * firsts[0].sigma
-    if centre is None or not math.isfinite(sd) or sd <= 0 or sd > (hi - lo) / 4:
+            centre, sd = np.array([firsts[0].value]), np.array([4 * SCALE_PRIOR[1] * firsts[0].sigma])
+    if centre is None or not np.all(np.isfinite(sd)) or np.any(sd <= 0) or np.any(sd > (hi - lo) / 4):
         return None
     return centre, sd
 
 
-def _draw(n: int, prior: tuple[float, float], near: tuple[float, float] | None,
+def _draw(n: int, lo: np.ndarray, hi: np.ndarray, near: tuple[np.ndarray, np.ndarray] | None,
           rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` values from the uniform ``prior``, drawn ``near`` what a lap's evidence says when it says something,
-    with their log weights prior/proposal (0 when drawn from the prior itself): the evidence, far sharper than
-    the prior, then does not leave a handful of particles to carry the rest."""
-    lo, hi = prior
+    """``n`` values (n, causes) from the uniform prior ``lo``..``hi``, drawn ``near`` what a lap's evidence says
+    when it says something, with their log weights prior/proposal per cause (0 when drawn from the prior itself):
+    the evidence, far sharper than the prior, then does not leave a handful of particles to carry the rest."""
+    d = len(lo)
     if near is None:
-        return rng.uniform(lo, hi, n), np.zeros(n)
+        return rng.uniform(lo, hi, (n, d)), np.zeros((n, d))
     centre, sd = near
-    v = centre + sd * rng.standard_normal(n)
+    v = centre + sd * rng.standard_normal((n, d))
     inside = (v >= lo) & (v <= hi)
-    if not inside.any():
-        return rng.uniform(lo, hi, n), np.zeros(n)
+    if not inside.any(axis=0).all():
+        return rng.uniform(lo, hi, (n, d)), np.zeros((n, d))
     # prior/proposal: 1/(hi − lo) over sd·√(2π)·exp(−z²/2), so the same scale whichever way a particle was drawn
-    logw = np.where(inside, 0.5 * ((v - centre) / sd) ** 2 + math.log(sd * math.sqrt(2 * math.pi) / (hi - lo)),
+    logw = np.where(inside, 0.5 * ((v - centre) / sd) ** 2 + np.log(sd * math.sqrt(2 * math.pi) / (hi - lo)),
                     -np.inf)
     return v, logw
 
@@ -193,30 +220,35 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
              observations: Sequence[LapObservation] = (), model: ObservationModel | None = None) -> DegradationState:
     """Filter from the first lap with evidence to ``until_lap``; ``outcomes`` count only with a ``failure`` model
     and ``observations`` only with their ``model`` (laps before the first measurement or observation are not
-    used). Needs a measurement or an observation."""
+    used). Needs a measurement or an observation. Two causes at once: ``model`` and ``failure`` over their plane
+    (:mod:`tuner.prognostics.plane`), ``settings`` with one span, range and sign per cause, no measurements (an
+    alignment of one parameter explains the laps by it alone)."""
     obs = sorted(observations, key=lambda o: (o.lap, o.features)) if model is not None else []
     if not measurements and not obs:
         raise ValueError("no measurement or lap observation to start from")
     rng = np.random.default_rng(seed)
-    n, q, span = settings.particles, settings.q, settings.span
+    n, q, spans, signs = settings.particles, settings.q, settings.spans, settings.signs
+    d = len(spans)
+    if d > 1 and (measurements or settings.value_range is None):
+        raise ValueError("two causes at once: laps read through their plane, and a value range for each")
     ms = sorted(measurements, key=lambda m: (m.lap, m.first_lap, m.value, m.sigma))
     start = min([m.first_lap for m in ms] + [o.lap for o in obs])
     if settings.value_range is not None:
-        lo, hi = settings.value_range
+        lo, hi = np.array(settings.value_range, float).reshape(d, 2).T
     else:
         first = ms[0]
-        wide = max(3 * SCALE_PRIOR[1] * first.sigma, 0.1 * span)
-        lo, hi = first.value - wide, first.value + wide
-    v, logw = _draw(n, (lo, hi), _near(ms, obs, start, model, (lo, hi)), rng)
+        wide = max(3 * SCALE_PRIOR[1] * first.sigma, 0.1 * settings.span)
+        lo, hi = np.array([first.value - wide]), np.array([first.value + wide])
+    v, logw = _draw(n, lo, hi, _near(ms, obs, start, model, lo, hi), rng)
+    logw = logw.sum(axis=1)
     logw = logw - logw[np.isfinite(logw)].max()
-    r = rng.standard_normal(n) * settings.rate_prior * span
-    if settings.one_way:
-        r = settings.one_way * np.abs(r)
-    a = rng.standard_normal(n) * settings.accel_prior * span
-    curved = np.ones(n, dtype=bool)
-    if settings.one_way:  # half the particles wear in a straight line, half speed up (a worn part wears faster)
-        curved = rng.random(n) < 0.5
-        a = np.where(curved, settings.one_way * np.abs(a), 0.0)
+    r = rng.standard_normal((n, d)) * settings.rate_prior * spans
+    r = np.where(signs != 0, signs * np.abs(r), r)
+    a = rng.standard_normal((n, d)) * settings.accel_prior * spans
+    curved = np.ones((n, d), dtype=bool)
+    if signs.any():  # half the particles wear in a straight line, half speed up (a worn part wears faster)
+        curved = (rng.random((n, d)) < 0.5) | (signs == 0)
+        a = np.where(signs == 0, a, np.where(curved, signs * np.abs(a), 0.0))
     # the noise scale, per particle as a distribution on a grid too (Rao-Blackwellised): drawn once per particle,
     # resampling collapsed it onto a few values, a different few for each seed, and the forecast with it (issue 35)
     scales = np.exp(np.linspace(math.log(SCALE_PRIOR[0]), math.log(SCALE_PRIOR[1]), SCALE_GRID))
@@ -238,42 +270,47 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
         for o in sorted(outcomes, key=lambda o: (o.lap, o.failed)):
             if start <= o.lap <= until_lap:
                 outs.setdefault(o.lap, []).append(o)
+    # the shapes the particles' (value, rate, acceleration) take: one Liu-West kernel each (straight parts have
+    # no acceleration to move)
+    shapes = [np.array(p, dtype=bool) for p in itertools.product((True, False), repeat=d)]
     band = []
     last = max([until_lap] + [m.lap for m in ms])
     for lap in range(start, last + 1):
         if lap > start:
             v = v + r
-            r = one_way(r + a + q * rng.standard_normal(n), settings.one_way)
+            r = one_way(r + a + q * rng.standard_normal((n, d)), signs)
             if settings.renewal > 0:  # renewals proposed RENEWAL_PROPOSED of the time, weighed back to the model's
-                renewed = rng.random(n) < RENEWAL_PROPOSED
-                fresh, fresh_logw = _draw(n, (lo, hi), _near(ms, obs, lap, model, (lo, hi)), rng)
+                renewed = rng.random((n, d)) < RENEWAL_PROPOSED
+                fresh, fresh_logw = _draw(n, lo, hi, _near(ms, obs, lap, model, lo, hi), rng)
                 v = np.where(renewed, fresh, v)
                 logw = logw + np.where(renewed, fresh_logw + math.log(settings.renewal / RENEWAL_PROPOSED),
-                                       math.log((1 - settings.renewal) / (1 - RENEWAL_PROPOSED)))
+                                       math.log((1 - settings.renewal) / (1 - RENEWAL_PROPOSED))).sum(axis=1)
         for m in by_lap.get(lap, ()):
-            z2 = ((m.value - (v - r * (m.lap - m.first_lap) / 2)) / m.sigma) ** 2
+            z2 = ((m.value - (v[:, 0] - r[:, 0] * (m.lap - m.first_lap) / 2)) / m.sigma) ** 2
             logw, log_p = _on_grid(logw, log_p, -0.5 * z2[:, None] / scales ** 2 - np.log(scales * m.sigma))
         for o in seen.get(lap, ()):
-            d2, logdet = model.distance(o.features, v)
+            d2, logdet = model.distance(o.features, v[:, 0] if d == 1 else v)
             logw, log_p = _on_grid(logw, log_p, -0.5 * d2[:, None] / scales ** 2 - len(model.names) *
                                     np.log(scales) - 0.5 * logdet[:, None])
         for o in outs.get(lap, ()):
-            p = settings.surprise + (1 - 2 * settings.surprise) * failure.p_fail(v[:, None], edges[None, :])
+            p = settings.surprise + (1 - 2 * settings.surprise) * failure.p_fail(
+                v[:, 0][:, None] if d == 1 else v[:, None, :], edges[None, :])
             logw, log_q = _on_grid(logw, log_q, np.log(p if o.failed else 1 - p))
         w = np.exp(logw - logw.max())
         w /= w.sum()
-        band.append((lap, *weighted_quantiles(v, w, (0.05, 0.5, 0.95))))
+        band.append((lap, *(x for j in range(d) for x in weighted_quantiles(v[:, j], w, (0.05, 0.5, 0.95)))))
         if 1.0 / np.sum(w ** 2) < n / 2:
             idx = systematic_resample(w, rng)
             v, r, a, curved, log_q, log_p = v[idx], r[idx], a[idx], curved[idx], log_q[idx], log_p[idx]
-            for group, cols in ((curved, (v, r, a)), (~curved, (v, r))):
+            for shape in shapes:
+                group = (curved == shape).all(axis=1)
+                cols = [(x, j) for j in range(d) for x in ((v, r, a) if shape[j] else (v, r))]
                 if group.sum() > len(cols):
-                    moved = _liu_west(np.stack([c[group] for c in cols], axis=1), rng)
-                    for j, c in enumerate(cols):
-                        c[group] = moved[:, j]
-            r = one_way(r, settings.one_way)
-            if settings.one_way:
-                a = settings.one_way * np.abs(a)
+                    moved = _liu_west(np.stack([x[group, j] for x, j in cols], axis=1), rng)
+                    for k, (x, j) in enumerate(cols):
+                        x[group, j] = moved[:, k]
+            r = one_way(r, signs)
+            a = np.where(signs != 0, signs * np.abs(a), a)
             logw = np.zeros(n)
     w = np.exp(logw - logw.max())
     w /= w.sum()
@@ -282,4 +319,7 @@ def estimate(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], u
     # each particle's edge and noise scale drawn from its own distribution (the edge within a grid step)
     step = edges[1] - edges[0] if SHIFT_GRID > 1 else 0.0
     shift = edges[_pick(log_q, rng)] + step * (rng.random(n) - 0.5)
-    return DegradationState(band[-1][0], v, r, scales[_pick(log_p, rng)], shift, band, a, settings.one_way)
+    if d == 1:
+        v, r, a = v[:, 0], r[:, 0], a[:, 0]
+    return DegradationState(band[-1][0], v, r, scales[_pick(log_p, rng)], shift, band, a,
+                            settings.one_way if d == 1 else signs.copy())

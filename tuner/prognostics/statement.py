@@ -49,16 +49,20 @@ def shape_sentence(life: RemainingLife) -> str | None:
             f"({shapes['speeding_up']['share']:.0%})")
 
 
-def retune_advice(life: RemainingLife, address: str, failing_value: float) -> str | None:
+def retune_advice(life: RemainingLife, address: str, failing_value: float, also: dict | None = None) -> str | None:
+    """Re-tune now when one future in ten fails within ``RETUNE_WITHIN`` laps: at the value where the gains fail
+    (and the ``also`` values of other causes that wear with it)."""
     risk = life.within(RETUNE_WITHIN)
     if risk < RETUNE_RISK:
         return None
+    sets = " ".join(f"--set {a}={v:.4g}" for a, v in {address: failing_value, **(also or {})}.items())
     return (f"re-tune now: {risk:.0%} of the futures fail within {RETUNE_WITHIN} laps (live --act does it, or tune "
-            f"with --set {address}={failing_value:.4g})")
+            f"with {sets})")
 
 
-def service_advice(life: RemainingLife, what: str, address: str, limit: float) -> str | None:
-    n = life.service_median()
+def service_advice(life: RemainingLife, what: str, address: str, limit: float, dim: int = 0) -> str | None:
+    """When the futures reach a part's service limit (``dim``: which part, with two causes at once)."""
+    n = life.service_median(dim)
     if n is None:
         return None
     if n == 0:

@@ -125,6 +125,12 @@ def _say(out: Output, e: dict) -> None:
                     f"laps read through the twin and {f['evidence']['laps']} lap outcomes")
         elif f.get("misfit") is not None:
             out.say(f"  {address}: {f['statement']}")
+        for cause, c in (f.get("causes") or {}).items():  # both at once (tuner.history.two_causes)
+            lo, mid, hi = c["rate"]
+            out.say(f"  {cause} (with {' and '.join(a for a in f['causes'] if a != cause)} at once): "
+                    f"{c['value_now']:.4g} at lap {f['now_lap']}, {mid:+.3g} per lap (90 %: {lo:+.3g} to {hi:+.3g}), "
+                    f"from {f['evidence'].get('observed_laps', 0)} laps read through the twin and "
+                    f"{f['evidence']['laps']} lap outcomes")
     if e.get("causes_note"):
         out.say(f"  causes: {e['causes_note']}")
     f = e["forecast"]

@@ -1,0 +1,143 @@
+"""Two causes at once (tuner.prognostics.plane, tuner.history.two_causes): the plane's models against hand
+numbers; the joint filter's remaining life covering the truth at its stated rate over synthetic lives drawn from the
+filter's own model (simulation-based calibration); and a stand-in robot whose grip and battery wear together along
+drifts the benchmark does not use, forecast from its laps alone."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from tuner.prognostics import FailureModel, FilterSettings, LapObservation, ObservationModel, estimate, remaining_life
+from tuner.prognostics.particle_filter import SCALE_PRIOR
+from tuner.prognostics.plane import PlaneFailure, PlaneObservation
+
+U = np.linspace(0.5, 1.0, 11)  # the first cause's values along each row
+ROWS = np.array([4.0, 5.0, 6.0, 7.0])  # the second cause's
+
+
+def _cubic(w):
+    return 0.1 * (6.0 - w) ** 3 - 0.05 * (6.0 - w) ** 2
+
+
+def _plane(second=_cubic, offset_w=-0.3e-3):
+    """A plane whose lap time is 7 + 2·(1 − u) + ``second``(w) and line offset 4 mm + 3 mm·(1 − u) + ``offset_w``·(6 −
+    w), scatter 0.01 s and 0.05 mm (uncorrelated), the scatter doubling from the first row to the last."""
+    models = []
+    for k, w in enumerate(ROWS):
+        means = np.stack([7 + 2 * (1 - U) + second(w), 4e-3 + 3e-3 * (1 - U) + offset_w * (6 - w)], axis=1)
+        cov = np.diag([0.01 ** 2, 0.05e-3 ** 2]) * (1 + k / (len(ROWS) - 1))
+        models.append((float(w), ObservationModel(("lap_time_s", "line_offset_m"), U, means,
+                                                  np.repeat(cov[None], len(U), axis=0))))
+    return PlaneObservation.of(models[::-1])  # any order of rows
+
+
+@pytest.mark.quick
+def test_the_plane_reads_its_rows_on_a_cubic_across_them_and_a_line_beyond():
+    """Means that are a cubic in the second cause come back exactly between rows (a line between the nearest two
+    was 0.03 s of lap time off on the twin's battery rows), and beyond the outer rows on the line through them;
+    the covariance on a line between rows, held beyond; the failure edge and its probability likewise; the
+    nearest values and how far one lap pins each cause against hand numbers."""
+    plane = _plane()
+    x = np.array([[0.8, 4.3], [0.65, 5.5], [0.9, 6.9], [0.7, 7.5], [0.7, 3.0]])
+    want_t = 7 + 2 * (1 - x[:, 0]) + np.array([_cubic(4.3), _cubic(5.5), _cubic(6.9),
+                                               _cubic(7.0) + 0.5 * (_cubic(7.0) - _cubic(6.0)),
+                                               _cubic(4.0) - 1.0 * (_cubic(5.0) - _cubic(4.0))])
+    assert plane.mean(x)[:, 0] == pytest.approx(want_t, abs=1e-12)
+    assert plane.mean(x)[:, 1] == pytest.approx(4e-3 + 3e-3 * (1 - x[:, 0]) - 0.3e-3 * (6 - x[:, 1]), abs=1e-15)
+    grow = np.array([1 + 0.3 / 3, 1 + 1.5 / 3, 1 + 2.9 / 3, 2.0, 1.0])  # the scatter's factor along the rows
+    assert plane.covariance(x)[:, 0, 0] == pytest.approx(0.01 ** 2 * grow, rel=1e-12)
+    failure = PlaneFailure.of([(float(w), FailureModel(0.6 + 0.02 * (6 - w) ** 2, 0.01, -1.0)) for w in ROWS], -1.0)
+    assert failure.threshold(np.array([4.5, 6.5])) == pytest.approx([0.6 + 0.02 * 1.5 ** 2, 0.6 + 0.02 * 0.25])
+    edge = 0.6 + 0.02 * 0.5 ** 2
+    assert failure.p_fail(np.array([[edge + 0.01, 5.5], [edge - 0.02, 5.5]])) == pytest.approx(
+        [norm.cdf(-1.0), norm.cdf(2.0)])
+    assert failure.p_fail(np.array([[edge, 5.5]]), shift=np.array([0.01])) == pytest.approx([norm.cdf(1.0)])
+    assert list(failure.direction) == [-1.0, -1.0]
+    # a lap right on the plane at (0.75, 5.2) is found there (within the grid's step), and one lap pins u to
+    # 1/√(Jᵀ Σ⁻¹ J)'s diagonal: lap time moves 2 s per unit of u and −(0.3·(6 − w)² − 0.1·(6 − w)) per unit of w
+    u0, w0 = 0.75, 5.2
+    found, d2 = plane.nearest(tuple(plane.mean(np.array([[u0, w0]]))[0]), (np.array([0.5, 4.0]), np.array([1.0, 7.0])),
+                              points=201)
+    assert found == pytest.approx([u0, w0], abs=0.02) and d2 < 0.5
+    jac = np.array([[-2.0, -(0.3 * (6 - w0) ** 2 - 0.1 * (6 - w0))], [-3e-3, 0.3e-3]])
+    info = jac.T @ np.linalg.inv(plane.covariance(np.array([[u0, w0]]))[0]) @ jac
+    assert plane.pins(np.array([u0, w0])) == pytest.approx(np.sqrt(np.diag(np.linalg.inv(info))), rel=1e-3)
+    assert plane.reads((9.0, 4e-3)) and not plane.reads((30.0, 4e-3))
+    with pytest.raises(ValueError):
+        PlaneObservation(np.array([5.0]), (plane.models[0],))
+
+
+def _two_worn_parts(i: int, st: FilterSettings, plane: PlaneObservation, horizon: int):
+    """Two parts' life from the joint filter's own model (each straight or speeding up, half the time each), read
+    lap by lap through ``plane`` with the robot's own noise scale; laps 0-30 seen."""
+    g = np.random.default_rng(9000 + i)
+    scale = math.exp(g.uniform(*map(math.log, SCALE_PRIOR)))
+    (lo, hi), spans = np.array(st.value_range).T, st.spans
+    v = g.uniform(lo, hi)
+    r = -np.abs(g.standard_normal(2)) * st.rate_prior * spans
+    a = np.where(g.random(2) < 0.5, -np.abs(g.standard_normal(2)) * st.accel_prior * spans, 0.0)
+    obs, path = [], []
+    for lap in range(31 + horizon):
+        if lap:
+            v, r = v + r, np.minimum(r + a + st.q * g.standard_normal(2), 0.0)
+        path.append(v)
+        if lap <= 30:
+            chol = np.linalg.cholesky(plane.covariance(v[None])[0])
+            obs.append(LapObservation(lap, tuple(float(y) for y in plane.mean(v[None])[0]
+                                                 + scale * chol @ g.standard_normal(2))))
+    return obs, path
+
+
+def test_both_causes_at_once_give_a_remaining_life_that_covers_the_truth_at_its_stated_rate():
+    """120 synthetic lives of two parts wearing together, each from the joint filter's own model, read lap by lap
+    through a plane with a sharp edge (the first cause fails below 0.6 + 0.02·(6 − w)², the second's way). The
+    remaining life's 90 % interval must cover the true first failed lap in at least 0.9 − 3 binomial standard
+    deviations (√(0.9·0.1/120) = 2.7 %: 81.8 %), a false alarm about 0.1 % of the time for a calibrated filter,
+    and at most 98 % (whole laps, ends included)."""
+    plane = _plane()
+    failure = PlaneFailure.of([(float(w), FailureModel(0.6 + 0.02 * (6 - w) ** 2, 1e-4, -1.0)) for w in ROWS], -1.0)
+    st = FilterSettings(span=(0.3, 2.0), value_range=((0.75, 1.0), (5.0, 6.5)), renewal=0.0, rate_prior=0.02,
+                        one_way=(-1.0, -1.0), particles=2000)
+    horizon, n, life_in = 300, 120, 0
+    for i in range(n):
+        obs, path = _two_worn_parts(i, st, plane, horizon)
+        state = estimate((), (), 30, st, failure, seed=i, observations=obs, model=plane)
+        life = remaining_life(state, failure, st.q, seed=i, horizon=horizon)
+        truth = next((k for k in range(1, horizon + 1) if failure.p_fail(path[30 + k][None])[0] > 0.5), math.inf)
+        life_in += life.quantile(0.05) <= truth <= life.quantile(0.95)
+    assert 0.818 <= life_in / n <= 0.98, life_in / n
+
+
+def test_a_robot_whose_grip_and_battery_wear_together_is_forecast_from_both_and_the_order_does_not_matter():
+    """Grip and the battery wearing together along drifts the benchmark does not use (0.95 → 0.5 and 6.1 → 4.0 V
+    over 50 laps, the robot starting above the twin's own voltage), read from every lap's time and line offset, no
+    alignment: neither alone explains the laps at half of the life, so ``history`` forecasts both at once, and its
+    90 % interval holds the lap the robot first fails on; the same laps in another order give the same forecast
+    bit for bit. One scenario, deterministic seeds: a calibrated interval misses one in ten, which would show here
+    as a failure to look into, not to re-seed away."""
+    from stand_in import robot_laps
+    from tuner.history.report import causes_note, soonest
+    from tuner.history.two_causes import forecasts_of, joint_address
+    from twin.core.digital_twin import DigitalTwin
+
+    plain = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+    twin = DigitalTwin()
+    twin.model()
+    laps = robot_laps(twin, plain, ["motion.mu=0.95:0.5@50", "motor.supply_voltage=6.1:4.0@50"], 56, 900)
+    first_failed = next((k for k, r in enumerate(laps) if not r["completed"]), None)
+    assert first_failed is not None and 30 < first_failed < 56, first_failed  # decidable: seen within the run
+    now = first_failed // 2
+    causes = ["motion.mu", "motor.supply_voltage"]
+    fs = forecasts_of(twin, plain, [], laps[:now + 1], causes, now)
+    both = fs[joint_address(("motion.mu", "motor.supply_voltage"))]
+    assert all(fs[a].laps_to_failure is None for a in causes) and soonest(fs.values()) is both
+    assert "wearing together" in both.statement and "together too" in causes_note(fs, [])
+    assert set(both.causes) == set(causes) and both.evidence["features"] == ["lap_time_s", "line_offset_m"]
+    lo, hi = both.interval
+    assert lo <= first_failed - now <= (hi if hi is not None else math.inf), (both.statement, first_failed)
+    shuffled = [laps[k] for k in np.random.default_rng(5).permutation(now + 1)]
+    assert forecasts_of(twin, plain, [], shuffled, causes, now)[both.address] == both

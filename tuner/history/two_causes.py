@@ -1,0 +1,167 @@
+"""Two causes at once: when no one part's wear explains the robot's last laps (:func:`tuner.history.forecast.
+one_cause_misfit`: with the lap time and the line's offset, grip and battery leave different marks), the forecast
+tracks both parts that wear together (:data:`tuner.history.forecast.SERVICE`: grip and the battery):
+
+1. the twin races the gains in force along the first cause's ladder at ``ROWS`` values of the second, from the
+   twin's own value to where the gains fail on the second alone (each row a race of :mod:`tuner.history.twin_edge`,
+   kept in the cache; the row at the twin's own value is the race of the first cause alone): the failure edge and
+   the observation model over the plane of the two (:mod:`tuner.prognostics.plane`);
+2. one particle filter carries both values, their rates and shapes, from every finished lap's features and every
+   lap outcome (alignments are not evidence here: each explains the laps by one parameter alone);
+3. the Monte Carlo races each future against the plane's edge: the laps to the first failure, as for one cause,
+   and when each part reaches its service limit.
+
+:func:`forecasts_of` is what ``history`` asks for a robot: each cause on its own and, when no one explains the laps,
+both together.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from tuner.history.forecast import (EDGE_PRIOR, LAP_TIMEOUT_S, MIN_TIMED_LAPS, MISFIT_LIMIT, SERVICE, Forecast,
+                                    forecast_failure, no_number, observations_of, outcomes_of, race_range,
+                                    service_direction)
+from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
+from tuner.history.twin_edge import twin_edge
+from tuner.prognostics import FilterSettings, estimate, life_sentence, remaining_life, retune_advice, service_advice
+from tuner.prognostics import shape_sentence
+from tuner.prognostics.plane import PlaneFailure, PlaneObservation
+from twin.core.digital_twin import DigitalTwin
+from twin.core.lap import LapLimits
+
+ROWS = 4  # values of the second cause the first is raced at: the twin's own, then evenly to where it fails alone
+TELLS_APART = 0.9  # above this |correlation| of the two values over the particles the laps do not tell them apart
+
+
+def joint_address(causes: tuple[str, str]) -> str:
+    """The key of the forecast of both causes at once (``history --json``'s ``forecasts``)."""
+    return "+".join(causes)
+
+
+@dataclasses.dataclass(frozen=True)
+class Plane:
+    failure: PlaneFailure | None  # None: fewer than two rows where the gains fail
+    observation: PlaneObservation | None  # None: fewer than two rows with regular laps
+    rows: tuple[float, ...]  # the second cause's values raced
+    raced: tuple[float, float]  # the first cause's range along each row
+    laps: int
+    spans: tuple[float, float]  # each cause's distance from the twin's value to where the gains fail on it alone
+
+
+def race_plane(twin: DigitalTwin, gains: dict, causes: tuple[str, str], seed: int, limits: LapLimits,
+               seeds: int = EDGE_SEEDS) -> Plane:
+    """Race ``gains`` along the first cause at ``ROWS`` values of the second (each row a cached race)."""
+    first, second = causes
+    d1, d2 = service_direction(twin, first, []), service_direction(twin, second, [])
+    start, end = race_range(twin, first, [], d1)
+    s2, e2 = race_range(twin, second, [], d2)
+    alone = twin_edge(twin, gains, second, s2, e2, d2, seed, limits, seeds=seeds)
+    own = float(twin.space.get(second))
+    far = alone.failure.threshold if alone.failure is not None else e2
+    values = np.linspace(own, far, ROWS)
+    # the row at the twin's own value is the first cause's race alone (the same gains: the same cached race)
+    edges = [(float(w), twin_edge(twin, gains if k == 0 else {**gains, second: float(w)}, first, start, end, d1,
+                                  seed, limits, seeds=seeds)) for k, w in enumerate(values)]
+    failing = [(w, e.failure) for w, e in edges if e.failure is not None]
+    seen = [(w, e.observation) for w, e in edges if e.observation is not None]
+    own_edge = edges[0][1].failure
+    spans = (abs(start - own_edge.threshold) if own_edge is not None else abs(end - start), abs(own - far))
+    return Plane(PlaneFailure.of(failing, d2) if len(failing) >= 2 else None,
+                 PlaneObservation.of(seen) if len(seen) >= 2 else None, tuple(float(w) for w in values),
+                 (start, end), sum(e.laps for _, e in edges) + alone.laps, spans)
+
+
+def race_ahead_both(twin: DigitalTwin, gains: dict, seed: int = 0) -> Plane:
+    """The races a forecast of both parts that wear (:data:`SERVICE`) at once asks for, run ahead (``live``)."""
+    return race_plane(twin, gains, tuple(sorted(SERVICE)), seed, LapLimits(timeout_s=LAP_TIMEOUT_S))
+
+
+def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes: tuple[str, str], now_lap: int,
+                        seed: int = 0, lap_timeout_s: float = LAP_TIMEOUT_S, filter_seed: int | None = None,
+                        seeds: int = EDGE_SEEDS) -> Forecast:
+    """When the ``gains`` in force first fail with both ``causes`` wearing, from the robot's ``laps`` up to
+    ``now_lap`` (each with its lap time and the line's mean offset: with the lap time alone any one cause explains
+    the laps, and the two cannot be told apart)."""
+    filter_seed = seed if filter_seed is None else filter_seed
+    address = joint_address(causes)
+    outs = sorted((o for o in outcomes_of(laps, gains) if o.lap <= now_lap), key=lambda o: (o.lap, o.failed))
+    offset = (any(r.get("xte_mean_m") is not None for r in laps)
+              and all(r.get("xte_mean_m") is not None for r in laps if r.get("completed")))
+    obs = observations_of(laps, gains, now_lap, offset=True) if offset else []
+    evidence = {"alignments": 0, "laps": len(outs), "failed": sum(o.failed for o in outs), "timed_laps": len(obs)}
+    if not offset:
+        return no_number(address, now_lap, f"the laps carry the lap time alone, which either of {causes[0]} and "
+                          f"{causes[1]} explains: the two cannot be told apart, no number for both at once",
+                          evidence, "too little evidence")
+    plane = race_plane(twin, gains, causes, seed, LapLimits(timeout_s=lap_timeout_s), seeds)
+    if plane.failure is None or plane.observation is None:
+        return dataclasses.replace(no_number(
+            address, now_lap, f"the twin's races of {causes[0]} at {len(plane.rows)} values of {causes[1]} give "
+            f"{'no failure edge' if plane.failure is None else 'no regular laps'} on two of them or more: no number "
+            "for both at once", evidence, "no plane"), laps=plane.laps)
+    obs = [o for o in obs if plane.observation.reads(o.features)]
+    if len(obs) < MIN_TIMED_LAPS:
+        return dataclasses.replace(no_number(
+            address, now_lap, f"too little evidence to forecast {causes[0]} and {causes[1]} at once: {len(obs)} laps "
+            f"read through the twin (at least {MIN_TIMED_LAPS})", evidence, "too little evidence"), laps=plane.laps)
+    own = np.array([plane.raced[0], plane.rows[0]])  # each cause's least worn value raced
+    ends = own + plane.failure.direction * np.array(plane.spans)
+    lo, hi = np.minimum(own, ends) - 0.5 * np.array(plane.spans), np.maximum(own, ends) + 0.5 * np.array(plane.spans)
+    settings = FilterSettings(span=plane.spans, value_range=tuple(zip(lo, hi)),
+                              one_way=tuple(plane.failure.directions), edge_prior=EDGE_PRIOR * plane.spans[0])
+    state = estimate((), outs, now_lap, settings, plane.failure, filter_seed, obs, plane.observation)
+    limits = np.array([SERVICE[c][0] for c in causes])
+    life = remaining_life(state, plane.failure, settings.q, filter_seed + 1, service_limit=limits)
+    evidence.update(observed_laps=len(obs), alignments_used=0, features=list(plane.observation.names))
+    told = abs(float(np.corrcoef(state.value[:, 0], state.value[:, 1])[0, 1])) < TELLS_APART
+    per = {c: {"value_now": state.quantiles(dim=k)[1], "value_band": state.quantiles((0.05, 0.95), dim=k),
+               "rate": state.rate_quantiles(dim=k), "band": [(b[0], *b[1 + 3 * k:4 + 3 * k]) for b in state.band]}
+           for k, c in enumerate(causes)}
+    together = (f"{causes[0]} and {causes[1]} wearing together (neither alone explains the laps"
+                + ("" if told else "; the laps cannot tell yet how much of the wear is each's") + ")")
+    advice: list[str] = []
+    failing_now = float(plane.failure.threshold(np.array(per[causes[1]]["value_now"])))
+    if outs and outs[-1].failed and outs[-1].lap == now_lap:
+        statement = f"the gains in force already fail (the robot's last lap, {now_lap}, did), {together}"
+        laps_to, interval, quantiles = 0.0, (0.0, 0.0), life.quantiles()
+        advice.append(f"re-tune now: the gains in force already fail (live --act does it, or tune with --set "
+                      f"{causes[0]}={failing_now:.4g} --set {causes[1]}={per[causes[1]]['value_now']:.4g})")
+    else:
+        statement = f"{life_sentence(life)}, {together}"
+        humps = shape_sentence(life)
+        if humps:
+            statement = f"{statement}; {humps}"
+        quantiles = life.quantiles()
+        laps_to, interval = quantiles["50"], (quantiles["5"], quantiles["95"])
+        retune = retune_advice(life, causes[0], failing_now, {causes[1]: per[causes[1]]["value_now"]})
+        if retune:
+            advice.append(retune)
+    for k, c in enumerate(causes):
+        said = service_advice(life, SERVICE[c][1], c, SERVICE[c][0], dim=k)
+        if said:
+            advice.append(said)
+    now = "; ".join(f"{c} is {p['value_now']:.4g} now (90 % {p['value_band'][0]:.4g}–{p['value_band'][1]:.4g})"
+                    for c, p in per.items())
+    note = (f"{now}, from {len(obs)} laps read through the twin ({', '.join(plane.observation.names)}) and "
+            f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "
+            f"laps fail at {causes[0]} {failing_now:.4g} with {causes[1]} at its value now (raced at {causes[1]} "
+            f"{', '.join(f'{w:.4g}' for w in plane.rows)})")
+    return Forecast(address, now_lap, statement, None, None, None, None, laps_to, interval, quantiles, plane.raced,
+                    plane.laps, evidence, (), tuple(advice), note, None, life.by_shape(), per)
+
+
+def forecasts_of(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], causes: list[str],
+                 now_lap: int, seed: int = 0, filter_seed: int | None = None) -> dict[str, Forecast]:
+    """{address: forecast} for each cause on its own and, when no one of the parts that wear explains the last laps
+    while two of them do wear, for both at once (:func:`forecast_two_causes`, keyed by :func:`joint_address`)."""
+    out = {a: forecast_failure(twin, gains, alignments, laps, a, now_lap, seed=seed, filter_seed=filter_seed)
+           for a in causes}
+    worn = tuple(sorted(SERVICE))
+    misfits = [out[a].misfit if a in out else None for a in worn]
+    if len(worn) == 2 and all(m is not None and m > MISFIT_LIMIT for m in misfits):
+        out[joint_address(worn)] = forecast_two_causes(twin, gains, laps, worn, now_lap, seed=seed,
+                                                       filter_seed=filter_seed)
+    return out

@@ -1,0 +1,158 @@
+"""Two causes at once (grip and battery wearing together): the twin's failure edge and observation model over the
+plane of two parameters, (u, w) = (the first cause's value, the second's), built from rows: the first cause raced
+along its ladder (:mod:`tuner.history.twin_edge`) at a few values of the second. Between rows both lie on a cubic
+across the nearest rows, and straight on beyond the outer rows, as the one-parameter models are along u.
+
+The same interface as the one-parameter models (:class:`tuner.prognostics.evidence.FailureModel`,
+:class:`tuner.prognostics.evidence.ObservationModel`), on values of shape (n, 2): the particle filter and the Monte
+Carlo carry both causes' values, rates and shapes at once (:mod:`tuner.prognostics.particle_filter`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from tuner.prognostics.evidence import FailureModel, ObservationModel
+
+
+def _weights(rows: np.ndarray, w: np.ndarray, smooth: bool = True) -> np.ndarray:
+    """(n, rows): how much each row counts at each of the values ``w`` (n,) of the second cause. Between the outer
+    rows: the cubic through the four nearest (Lagrange; fewer rows, fewer); a line between the two nearest was
+    0.03 s of lap time off mid-way (three times a lap's scatter: lap time is convex in the battery's voltage),
+    and the filter moved grip to make up for it. Beyond the outer rows, and with ``smooth`` False: the line
+    through the two nearest (held at the outer row beyond it without ``smooth``)."""
+    w = np.asarray(w, float)
+    k, n = len(rows), len(w)
+    i = np.clip(np.searchsorted(rows, w) - 1, 0, k - 2)
+    t = (w - rows[i]) / (rows[i + 1] - rows[i])
+    out = np.zeros((n, k))
+    out[np.arange(n), i] = 1 - (t if smooth else np.clip(t, 0.0, 1.0))
+    out[np.arange(n), i + 1] += t if smooth else np.clip(t, 0.0, 1.0)
+    m = min(4, k)
+    inside = (w >= rows[0]) & (w <= rows[-1])
+    if smooth and m > 2 and inside.any():
+        first = np.clip(i - (m - 2) // 2, 0, k - m)[inside]
+        idx = first[:, None] + np.arange(m)
+        x, at = rows[idx], w[inside][:, None]
+        lagrange = np.ones_like(x)
+        for j in range(m):
+            others = np.arange(m) != j
+            lagrange[:, j] = np.prod((at - x[:, others]) / (x[:, [j]] - x[:, others]), axis=1)
+        cubic = np.zeros((len(idx), k))
+        np.put_along_axis(cubic, idx, lagrange, axis=1)
+        out[inside] = cubic
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class PlaneFailure:
+    """The gains in force fail a lap at (u, w) with probability Φ(d·(u − threshold(w) − shift)/width(w)): each row's
+    edge along the first cause (``rows`` the second cause's values, ascending), between rows on a cubic across them
+    (:func:`_weights`). ``shift`` is
+    the robot's edge against the twin's, in the first cause's unit. ``directions``: the way each part wears."""
+    rows: np.ndarray
+    thresholds: np.ndarray
+    widths: np.ndarray
+    directions: tuple[float, float]
+
+    @classmethod
+    def of(cls, rows: list[tuple[float, FailureModel]], second_direction: float) -> "PlaneFailure":
+        rows = sorted(rows, key=lambda r: r[0])
+        return cls(np.array([w for w, _ in rows]), np.array([f.threshold for _, f in rows]),
+                   np.array([f.width for _, f in rows]), (rows[0][1].direction, second_direction))
+
+    @property
+    def direction(self) -> np.ndarray:
+        return np.array(self.directions)
+
+    @property
+    def width(self) -> float:
+        """The edge's typical width (the median row's) [the first cause's unit]."""
+        return float(np.median(self.widths))
+
+    def threshold(self, w: np.ndarray) -> np.ndarray:
+        """Where half the laps fail along the first cause, at the second's values ``w``."""
+        w = np.asarray(w, float)
+        return (_weights(self.rows, w.ravel()) @ self.thresholds).reshape(w.shape)
+
+    def p_fail(self, x: np.ndarray, shift: np.ndarray | float = 0.0) -> np.ndarray:
+        """At values ``x`` (..., 2), for a robot whose edge lies ``shift`` beyond the twin's."""
+        from scipy.special import ndtr
+
+        x = np.asarray(x, float)
+        weights = _weights(self.rows, x[..., 1].ravel())
+        threshold = (weights @ self.thresholds).reshape(x.shape[:-1])
+        width = np.exp(weights @ np.log(self.widths)).reshape(x.shape[:-1])  # its logarithm: never negative
+        return ndtr(self.directions[0] * (x[..., 0] - threshold - shift) / width)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlaneObservation:
+    """What a finished lap shows at (u, w): each row's observation model along the first cause (``rows`` the second
+    cause's values, ascending), between rows its features' means on a cubic across them (straight on beyond the
+    outer rows), their covariance on a line (held beyond)."""
+    rows: np.ndarray
+    models: tuple[ObservationModel, ...]
+
+    def __post_init__(self):
+        if len(self.rows) < 2 or len(self.rows) != len(self.models) or np.any(np.diff(self.rows) <= 0):
+            raise ValueError("a plane needs two rows or more, at ascending values")
+
+    @classmethod
+    def of(cls, rows: list[tuple[float, ObservationModel]]) -> "PlaneObservation":
+        rows = sorted(rows, key=lambda r: r[0])
+        return cls(np.array([w for w, _ in rows]), tuple(m for _, m in rows))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.models[0].names
+
+    def _blend(self, x: np.ndarray, of, smooth: bool) -> np.ndarray:
+        x = np.atleast_2d(np.asarray(x, float))
+        each = np.stack([of(m, x[:, 0]) for m in self.models])  # (rows, n, …)
+        return np.einsum("nk,kn...->n...", _weights(self.rows, x[:, 1], smooth), each)
+
+    def mean(self, x: np.ndarray) -> np.ndarray:
+        """(n, d): the features the twin expects at ``x`` (n, 2)."""
+        return self._blend(x, lambda m, u: m.mean(u), smooth=True)
+
+    def covariance(self, x: np.ndarray) -> np.ndarray:
+        """(n, d, d): one lap's scatter at ``x`` (n, 2)."""
+        return self._blend(x, lambda m, u: m.covariance(u), smooth=False)
+
+    def reads(self, features: tuple[float, ...]) -> bool:
+        """Is this a lap some row describes (not one that lost the line and found it again)?"""
+        return any(m.reads(features) for m in self.models)
+
+    def distance(self, features: tuple[float, ...], x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(squared Mahalanobis distance of a lap's features from the twin's at each ``x`` (n, 2), log determinant of
+        the covariance there), as :meth:`ObservationModel.distance`."""
+        r = np.asarray(features)[None, :] - self.mean(x)
+        cov = self.covariance(x)
+        return np.einsum("ni,nij,nj->n", r, np.linalg.inv(cov), r), np.log(np.linalg.det(cov))
+
+    def nearest(self, features: tuple[float, ...], span: tuple[np.ndarray, np.ndarray],
+                points: int = 121) -> tuple[np.ndarray, float]:
+        """(the values (2,) in the box ``span`` = (lows, highs) whose features the twin gives nearest a lap's, the
+        squared Mahalanobis distance there)."""
+        lo, hi = np.asarray(span[0], float), np.asarray(span[1], float)
+        u, w = np.meshgrid(np.linspace(lo[0], hi[0], points), np.linspace(lo[1], hi[1], points))
+        grid = np.stack([u.ravel(), w.ravel()], axis=1)
+        d2, _ = self.distance(features, grid)
+        k = int(np.argmin(d2))
+        return grid[k], float(d2[k])
+
+    def pins(self, x: np.ndarray) -> np.ndarray:
+        """How far one lap pins each cause near ``x`` (2,) (one standard error each, their units): from the
+        features' slopes along both and their covariance (Fisher information); inf where the laps cannot tell."""
+        x = np.asarray(x, float)
+        step = 1e-3 * np.maximum(np.abs(x), 1e-6)
+        jac = np.stack([(self.mean(x + step * e)[0] - self.mean(x - step * e)[0]) / (2 * step[k])
+                        for k, e in enumerate(np.eye(2))], axis=1)  # (features, 2)
+        info = jac.T @ np.linalg.inv(self.covariance(x)[0]) @ jac
+        if not np.all(np.isfinite(info)) or np.linalg.det(info) <= 0:
+            return np.full(2, math.inf)
+        return np.sqrt(np.maximum(np.diag(np.linalg.inv(info)), 0.0))
