@@ -206,6 +206,12 @@ def one_cause_misfit(model: ObservationModel, obs: list[LapObservation], span: t
     return float(np.mean([model.misfit(o.features, wide) for o in obs[-MISFIT_WINDOW:]]))
 
 
+def carries_offsets(laps: list[dict]) -> bool:
+    """Does the history hold the line's offset (``xte_mean_m``, from the robot's telemetry) for every finished lap?"""
+    return (any(r.get("xte_mean_m") is not None for r in laps)
+            and all(r.get("xte_mean_m") is not None for r in laps if r.get("completed")))
+
+
 def observations_of(laps: list[dict], gains: dict, now_lap: int, offset: bool) -> list[LapObservation]:
     """What each finished, plausible lap on ``gains`` up to ``now_lap`` shows: its lap time and, with ``offset``,
     the line's mean offset from the array's centre (the history's ``xte_mean_m``, from the robot's telemetry)."""
@@ -261,8 +267,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
             raced=(start, end), laps=raced)
     model = edge.observation
     if model is not None:
-        offset = (any(r.get("xte_mean_m") is not None for r in laps)
-                  and all(r.get("xte_mean_m") is not None for r in laps if r.get("completed")))
+        offset = carries_offsets(laps)
         obs = observations_of(laps, gains, now_lap, offset) if offset else timed
         model = model if offset else model.lap_time_only()
         obs = [o for o in obs if model.reads(o.features)]

@@ -22,7 +22,7 @@ import dataclasses
 import numpy as np
 
 from tuner.history.forecast import (EDGE_PRIOR, LAP_TIMEOUT_S, MIN_TIMED_LAPS, MISFIT_LIMIT, SERVICE, Forecast,
-                                    forecast_failure, no_number, observations_of, outcomes_of, race_range,
+                                    carries_offsets, forecast_failure, no_number, observations_of, outcomes_of, race_range,
                                     service_direction)
 from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
 from tuner.history.twin_edge import twin_edge
@@ -88,8 +88,7 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
     filter_seed = seed if filter_seed is None else filter_seed
     address = joint_address(causes)
     outs = sorted((o for o in outcomes_of(laps, gains) if o.lap <= now_lap), key=lambda o: (o.lap, o.failed))
-    offset = (any(r.get("xte_mean_m") is not None for r in laps)
-              and all(r.get("xte_mean_m") is not None for r in laps if r.get("completed")))
+    offset = carries_offsets(laps)
     obs = observations_of(laps, gains, now_lap, offset=True) if offset else []
     evidence = {"alignments": 0, "laps": len(outs), "failed": sum(o.failed for o in outs), "timed_laps": len(obs)}
     if not offset:
