@@ -18,7 +18,7 @@ from tuner.history.forecast import MISFIT_LIMIT, SERVICE
 from tuner.history.twin_edge import FEATURES
 from tuner.history.store import History
 from tuner.history.trend import trend_of
-from tuner.history.two_causes import forecasts_of
+from tuner.history.two_causes import forecasts_of, joint_address
 from twin.core.digital_twin import DigitalTwin
 from twin.errors import TwinError
 from twin.telemetry.wire import GAIN_ADDRESSES
@@ -115,7 +115,8 @@ def causes_note(forecasts: dict, aligned: list[dict]) -> str:
     if not forecasts:
         return "no cause tracked"
     unsure = sorted({a["address"] for a in aligned if a.get("identifiable") is False and not a.get("estimated")})
-    both = [a for a in forecasts if "+" in a]  # two causes at once (tuner.history.two_causes)
+    worn = tuple(sorted(SERVICE))
+    both = [a for a in forecasts if a == joint_address(worn)]  # both at once (tuner.history.two_causes)
     alone = [a for a in forecasts if a not in both]
     said = f"tracks {', '.join(alone)}, each on its own (the forecast is the soonest)"
     checked = {a: forecasts[a].misfit for a in alone if forecasts[a].misfit is not None}
@@ -127,7 +128,7 @@ def causes_note(forecasts: dict, aligned: list[dict]) -> str:
         if not fits:
             said += (f"; no one of them alone explains the last laps' {' and '.join(FEATURES)} together: more than "
                      "one cause is at work (or another)")
-            said += (f", so it tracks {' and '.join(both[0].split('+'))} together too" if both else ": no number")
+            said += (f", so it tracks {' and '.join(worn)} together too" if both else ": no number")
         elif len(fits) == 1:
             said += f"; only {fits[0]} alone explains the last laps' {' and '.join(FEATURES)} together"
         else:
