@@ -13,6 +13,9 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
   * prognostic horizon: the life left when the forecasts start, and stay, within ±α of the true end of life
     (α = 0.2 of the whole life), as a fraction of the life;
   * relative accuracy at λ = 0.5: 1 − |true − median|/true;
+  * the information limit (one part wearing straight or speeding up): at half of the life, the Cramér–Rao bound
+    on the remaining life from the robot's laps read through the twin (:mod:`tuner.prognostics.information`), and
+    how often an unbiased forecast that good would meet α-λ;
   * the Monte Carlo's own error: the forecast at half of the life again on ``FILTER_SEEDS`` filter seeds (the
     races kept): the spread of their medians as a fraction of the true remaining life, and α-λ on each seed;
   * the forecast's wall time (a forecast must be ready within one lap at real time on 2 cores): each robot's
@@ -42,12 +45,14 @@ import tempfile
 import time
 
 from tuner.history import log_laps
-from tuner.history.forecast import MIN_TIMED_LAPS, SERVICE
+from tuner.history.forecast import MIN_TIMED_LAPS, SERVICE, race_ahead
 from tuner.history.ingest import cross_track
 from tuner.history.report import soonest
 from tuner.history import twin_edge
 from tuner.history.two_causes import forecasts_of as history_forecasts
+from tuner.prognostics.information import remaining_life_bound, within_alpha
 from twin.core.digital_twin import DigitalTwin
+from twin.link.emulator import Drift
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 from reference_gains import set_flags, tuned_gains  # noqa: E402  (the one home of tuned gains)
@@ -93,7 +98,32 @@ def robot_laps_of(folder: str) -> list:
     return [(lap.lap_time_s, cross_track(lap, PITCH_M)[1]) for lap in log_laps(os.path.join(folder, "echo.txt"))]
 
 
-def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int) -> dict:
+def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: int) -> dict | None:
+    """How well any forecast could do at lap ``now`` of a robot whose one part wears along a straight line or a
+    curve (``drifts``): the Cramér–Rao bound on the remaining life from its laps read through the twin's own
+    observation model at the twin's own scatter (:mod:`tuner.prognostics.information`; value, rate and
+    acceleration unknown), and the chance an unbiased forecast that good is within ±α (None: a step or two
+    causes, which the bound's family does not describe)."""
+    if len(drifts) != 1:
+        return None
+    drift = Drift.parse(drifts[0], twin)
+    if drift.shape == "step" or drift.address not in SERVICE:
+        return None
+    edge = race_ahead(twin, PLAIN)[drift.address]  # the races live ran ahead, read back
+    if edge.failure is None or edge.observation is None:
+        return None
+    values = [drift.at(k) for k in range(now + 1)]
+    try:
+        remaining, sd = remaining_life_bound(values, [edge.observation.pins(v) for v in values],
+                                             edge.failure.threshold, now)
+    except ValueError:  # too few laps that say anything
+        return None
+    return {"now": now, "crossing_laps": round(remaining, 1), "sd_laps": round(sd, 2),
+            "alpha_lambda_attainable": round(within_alpha(true_rul, sd, ALPHA), 3)}
+
+
+def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int,
+                 drifts: list[str] = ()) -> dict:
     """The forecasts at POINTS of the life, and every EVERY laps (for the prognostic horizon), from what the
     history would hold: live's alignments and the robot's laps (lap time, the line's mean offset)."""
     lap_times = [t for t, _ in robot_laps]
@@ -131,6 +161,7 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     others = [forecast(half["now"], filter_seed=k)[0].laps_to_failure for k in range(seed + 1, seed + FILTER_SEEDS)]
     out["filter_seeds_at_half"] = {"now": half["now"], "true_rul": half["true_rul"],
                                    "medians": [half["median"], *others]}
+    out["information_limit"] = information_limit(twin, list(drifts), half["now"], half["true_rul"])
     twin_edge.forget_races()  # a new history process: the races read back from the cache folder
     again, wall = forecast(at[-1])
     assert again.quantiles == f.quantiles and again.statement == f.statement, "a race read back is not the race"
@@ -175,6 +206,7 @@ def metrics(runs: list[dict]) -> dict:
     spreads = [(max(m) - min(m)) / h["true_rul"] for h in seeded if None not in (m := h["medians"])]
     per_seed = [m is not None and abs(m - h["true_rul"]) <= ALPHA * h["true_rul"] for h in seeded
                 for m in h["medians"]]
+    bounds = [r["information_limit"]["alpha_lambda_attainable"] for r in runs if r.get("information_limit")]
     return {"forecasts": len(points), "without_a_number": silent,
             "coverage_90": round(sum(map(_covered, points)) / len(points), 3) if points else None,
             "median_width_laps": statistics.median(widths) if widths else None,
@@ -191,7 +223,9 @@ def metrics(runs: list[dict]) -> dict:
             "cached_forecast_wall_s_median": statistics.median(cached) if cached else None,
             "filter_seed_spread_median": round(statistics.median(spreads), 3) if spreads else None,
             "filter_seed_spread_max": round(max(spreads), 3) if spreads else None,
-            "alpha_lambda_met_per_filter_seed": round(sum(per_seed) / len(per_seed), 3) if per_seed else None}
+            "alpha_lambda_met_per_filter_seed": round(sum(per_seed) / len(per_seed), 3) if per_seed else None,
+            # how often an unbiased forecast at the information limit would meet α-λ (one part, straight or curved)
+            "alpha_lambda_attainable_mean": round(statistics.mean(bounds), 3) if bounds else None}
 
 
 def main() -> None:
@@ -243,7 +277,8 @@ def main() -> None:
                 print(f"{name} seed {seed}: first failed lap "
                       f"{next((k for k, (t, _) in enumerate(robot_laps) if t is None), None)}, "
                       f"{len(doc['alignments'])} alignments", file=sys.stderr)
-                runs.append({"scenario": name, "seed": seed, **forecasts_of(twin, folder, doc, robot_laps, 0)})
+                runs.append({"scenario": name, "seed": seed,
+                             **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0])})
     result = {"speed": args.speed, "seeds": args.seeds, "wall_s": round(time.monotonic() - t0, 1),
               "all": metrics(runs), "by_scenario": {n: metrics([r for r in runs if r["scenario"] == n]) for n in names},
               "runs": runs}
@@ -258,6 +293,11 @@ def main() -> None:
         for f in r["forecasts"]:
             if f["at_point"]:
                 print(f"  {r['scenario']} seed {r['seed']}, lap {f['now']}: true {f['true_rul']} laps; {f['statement']}")
+        bound = r.get("information_limit")
+        if bound:
+            print(f"  {r['scenario']} seed {r['seed']}, information limit at lap {bound['now']}: remaining life "
+                  f"known to ± {bound['sd_laps']} laps at best (Cramér–Rao, the twin's scatter): within ±{ALPHA:g} "
+                  f"at most {bound['alpha_lambda_attainable']:.0%} of the time")
 
 
 if __name__ == "__main__":
