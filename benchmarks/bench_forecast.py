@@ -2,7 +2,8 @@
 by plain ``live`` for scenario × seed, each robot run to its real first failed lap; then, from what ``live``
 recorded (its alignments, stamped with the laps they measured, and the robot's laps: lap time, the line's mean
 offset), ``history``'s forecast (:func:`tuner.history.two_causes.forecasts_of`: each part that wears and, when
-no one explains the laps, both at once; the soonest, as ``history`` says it) made at several points of life, against the lap the robot first failed.
+no one explains the laps, both at once; the soonest, as ``history`` says it) made at several points of life,
+against the lap the robot first failed.
 
 The metrics of the field (the definitions of Saxena et al. 2010, as ProgPy's ``progpy.metrics`` computes them;
 written out here on plain numbers so the benchmark needs neither ProgPy's containers nor its import time):
@@ -292,7 +293,8 @@ def main() -> None:
     for r in runs:
         for f in r["forecasts"]:
             if f["at_point"]:
-                print(f"  {r['scenario']} seed {r['seed']}, lap {f['now']}: true {f['true_rul']} laps; {f['statement']}")
+                print(f"  {r['scenario']} seed {r['seed']}, lap {f['now']}: true {f['true_rul']} laps; "
+                      f"{f['statement']}")
         bound = r.get("information_limit")
         if bound:
             print(f"  {r['scenario']} seed {r['seed']}, information limit at lap {bound['now']}: remaining life "
