@@ -175,16 +175,16 @@ def test_a_robot_whose_grip_and_battery_wear_together_is_forecast_from_both_and_
     # Measured RMS 0.48 and 0.65, max 1.6 and 2.2; the same check on 7 rows read at the same u: max 6.0 and 5.2;
     # 4 rows evenly read at the same u: 9.5 at 5.14 V (read at the edge's distance: 2.6, but 15 at 4.4 V on the
     # benchmark's gains)
-    from tuner.history.forecast import LAP_TIMEOUT_S, race_range, service_direction
+    from tuner.history.forecast import LAP_TIMEOUT_S
     from tuner.history.twin_edge import twin_edge
     from tuner.history.two_causes import race_plane
     from twin.core.lap import LapLimits
 
     limits = LapLimits(timeout_s=LAP_TIMEOUT_S)
-    plane = race_plane(twin, plain, tuple(causes), 0, limits).observation
-    direction = service_direction(twin, "motion.mu", [])
-    start, end = race_range(twin, "motion.mu", [], direction)
-    rows = np.sort(plane.rows)
+    raced_plane = race_plane(twin, plain, tuple(causes), 0, limits)
+    plane, (start, end) = raced_plane.observation, raced_plane.raced
+    direction = raced_plane.failure.directions[0]
+    rows = plane.rows
     for w in ((rows[2] + rows[3]) / 2, (rows[4] + rows[5]) / 2):
         raced = twin_edge(twin, {**plain, "motor.supply_voltage": float(w)}, "motion.mu", start, end, direction, 0,
                           limits)

@@ -19,7 +19,9 @@ import numpy as np
 def crossing(coefficients: np.ndarray, threshold: float, after: float) -> float:
     """The first lap after ``after`` at which the polynomial (``coefficients`` in increasing powers of the lap)
     reaches ``threshold``; inf if it never does."""
-    p = np.polynomial.Polynomial(np.asarray(coefficients, float) - np.eye(len(coefficients))[0] * threshold)
+    shifted = np.array(coefficients, float)
+    shifted[0] -= threshold
+    p = np.polynomial.Polynomial(shifted)
     if p(after) == 0:
         return float(after)
     roots = [float(r.real) for r in p.roots() if abs(r.imag) < 1e-9 and r.real > after]
@@ -52,6 +54,8 @@ def remaining_life_bound(values: Sequence[float], sd_per_lap: Sequence[float], t
 def within_alpha(remaining: float, sd: float, alpha: float) -> float:
     """The probability that an unbiased normal estimate with standard deviation ``sd`` lies within ±``alpha`` of
     ``remaining`` (an upper bound on how often a forecast meets α-λ, at the scatter the bound was given)."""
-    if not math.isfinite(sd) or sd <= 0:
-        return 0.0 if not math.isfinite(sd) else 1.0
+    if not math.isfinite(sd):
+        return 0.0
+    if sd <= 0:
+        return 1.0
     return math.erf(alpha * remaining / (sd * math.sqrt(2.0)))

@@ -120,13 +120,15 @@ class PlaneObservation:
         """Each row read at the same distance from its own failure edge as ``x`` from the plane's (the edge at w
         on the cubic across the rows' edges, as :meth:`PlaneFailure.threshold`), then blended across rows: near
         the edge a lap slows steeply, and the edge moves with w, so rows read at the same u were up to 5 lap
-        scatters off a race between them (issue 35, 7 battery rows; ≤ 1.3 read at the same distance)."""
+        scatters off a race between them (issue 35, 7 battery rows; ≤ 2.2 read at the same distance)."""
         x = np.atleast_2d(np.asarray(x, float))
+        blend = _weights(self.rows, x[:, 1], smooth)
         u = np.broadcast_to(x[:, 0], (len(self.models), len(x)))
-        if self.edges is not None:
-            u = x[:, 0][None, :] - (_weights(self.rows, x[:, 1]) @ self.edges)[None, :] + self.edges[:, None]
+        if self.edges is not None:  # the edge on the cubic: the blend's own weights when it is the cubic too
+            edge = (blend if smooth else _weights(self.rows, x[:, 1])) @ self.edges
+            u = x[:, 0][None, :] - edge[None, :] + self.edges[:, None]
         each = np.stack([of(m, u[k]) for k, m in enumerate(self.models)])  # (rows, n, …)
-        return np.einsum("nk,kn...->n...", _weights(self.rows, x[:, 1], smooth), each)
+        return np.einsum("nk,kn...->n...", blend, each)
 
     def mean(self, x: np.ndarray) -> np.ndarray:
         """(n, d): the features the twin expects at ``x`` (n, 2)."""
