@@ -149,11 +149,14 @@ def one_ray_head(tmp_path_factory):
 
 @pytest.fixture(autouse=True, scope="session")
 def _cache_dir(tmp_path_factory):
-    os.environ["TWIN_CACHE_DIR"] = str(tmp_path_factory.mktemp("twin-cache"))
-    # the reference gains (reference_gains.tuned_gains): one folder for the whole run, both pytest processes
+    """One cache and one folder of reference gains (reference_gains.tuned_gains) for the whole run, both pytest
+    processes: a robot, a track or a race of the twin built by one is read by the other (cache entries are published
+    whole, lf_common.cache.cached_folder, so two processes building one entry is safe) instead of built twice."""
     root = tmp_path_factory.getbasetemp()
     if os.environ.get("PYTEST_XDIST_WORKER"):  # each process's base folder sits in the run's own
         root = root.parent
+    (root / "twin-cache").mkdir(exist_ok=True)
+    os.environ["TWIN_CACHE_DIR"] = str(root / "twin-cache")
     os.environ[GAINS_DIR] = str(root / "reference-gains")
 
 
