@@ -131,6 +131,12 @@ def pytest_collection_modifyitems(config, items):
     items[:] = first + second
 
 
+def _run_folder(tmp_path_factory):
+    """The run's own temporary folder, the same for both pytest processes (pytest -n 2)."""
+    root = tmp_path_factory.getbasetemp()
+    return root.parent if os.environ.get("PYTEST_XDIST_WORKER") else root  # each process's base folder sits in it
+
+
 @pytest.fixture
 def one_ray_head(tmp_path_factory):
     """The machine's Ray lock, held for the test: a test that starts a Ray head waits for the other pytest process's
@@ -139,10 +145,7 @@ def one_ray_head(tmp_path_factory):
     a lock held across tests could wait on a process that waits for it."""
     import fcntl
 
-    root = tmp_path_factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):  # each process's base folder sits in the run's own
-        root = root.parent
-    with open(root / "ray.lock", "a") as lock:
+    with open(_run_folder(tmp_path_factory) / "ray.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         yield
 
@@ -152,9 +155,7 @@ def _cache_dir(tmp_path_factory):
     """One cache and one folder of reference gains (reference_gains.tuned_gains) for the whole run, both pytest
     processes: a robot, a track or a race of the twin built by one is read by the other (cache entries are published
     whole, lf_common.cache.cached_folder, so two processes building one entry is safe) instead of built twice."""
-    root = tmp_path_factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):  # each process's base folder sits in the run's own
-        root = root.parent
+    root = _run_folder(tmp_path_factory)
     (root / "twin-cache").mkdir(exist_ok=True)
     os.environ["TWIN_CACHE_DIR"] = str(root / "twin-cache")
     os.environ[GAINS_DIR] = str(root / "reference-gains")

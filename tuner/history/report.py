@@ -116,8 +116,9 @@ def causes_note(forecasts: dict, aligned: list[dict]) -> str:
         return "no cause tracked"
     unsure = sorted({a["address"] for a in aligned if a.get("identifiable") is False and not a.get("estimated")})
     worn = tuple(sorted(SERVICE))
-    both = joint_address(worn) in forecasts  # both at once (tuner.history.two_causes)
-    alone = [a for a in forecasts if a != joint_address(worn)]
+    joint = joint_address(worn)  # both at once (tuner.history.two_causes)
+    both = joint in forecasts
+    alone = [a for a in forecasts if a != joint]
     said = f"tracks {', '.join(alone)}, each on its own (the forecast is the soonest)"
     checked = {a: forecasts[a].misfit for a in alone if forecasts[a].misfit is not None}
     if not checked:
