@@ -54,6 +54,22 @@ def test_futures_in_two_humps_are_read_as_both_shapes_of_wear():
 
 
 @pytest.mark.quick
+def test_the_closed_form_distance_is_numpys_inverse_and_determinant():
+    """evidence.mahalanobis (closed form for one and two features) against numpy's batched inverse and determinant,
+    on random covariances, strongly correlated ones among them; three features go to numpy."""
+    from tuner.prognostics.evidence import mahalanobis
+
+    rng = np.random.default_rng(5)
+    for d in (1, 2, 3):
+        a = rng.normal(size=(500, d, d))
+        cov = a @ a.transpose(0, 2, 1) + 1e-3 * np.eye(d)
+        r = rng.normal(size=(500, d))
+        q, logdet = mahalanobis(r, cov)
+        assert q == pytest.approx(np.einsum("ni,nij,nj->n", r, np.linalg.inv(cov), r), rel=1e-8)
+        assert logdet == pytest.approx(np.log(np.linalg.det(cov)), abs=1e-8)
+
+
+@pytest.mark.quick
 def test_an_alignments_interval_is_a_uniform_spread():
     assert measurement_sigma(0.8, (0.78, 0.81)) == pytest.approx(0.03 / math.sqrt(12))
     assert measurement_sigma(0.8, None) == pytest.approx(0.8 * 2e-3)

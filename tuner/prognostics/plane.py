@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from tuner.prognostics.evidence import FailureModel, ObservationModel
+from tuner.prognostics.evidence import FailureModel, ObservationModel, mahalanobis
 
 
 def _weights(rows: np.ndarray, w: np.ndarray, smooth: bool = True) -> np.ndarray:
@@ -145,15 +145,21 @@ class PlaneObservation:
     def distance(self, features: tuple[float, ...], x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(squared Mahalanobis distance of a lap's features from the twin's at each ``x`` (n, 2), log determinant of
         the covariance there), as :meth:`ObservationModel.distance`."""
-        r = np.asarray(features)[None, :] - self.mean(x)
-        cov = self.covariance(x)
-        return np.einsum("ni,nij,nj->n", r, np.linalg.inv(cov), r), np.log(np.linalg.det(cov))
+        return mahalanobis(np.asarray(features)[None, :] - self.mean(x), self.covariance(x))
 
     def nearest(self, features: tuple[float, ...], span: tuple[np.ndarray, np.ndarray],
-                points: int = 121) -> tuple[np.ndarray, float]:
+                points: int = 31) -> tuple[np.ndarray, float]:
         """(the values (2,) in the box ``span`` = (lows, highs) whose features the twin gives nearest a lap's, the
-        squared Mahalanobis distance there)."""
+        squared Mahalanobis distance there): the best of a ``points``² grid over the box, then of a second one over
+        the four coarse cells around it (a step of 1/225 of the box for 31; one 121² grid, 7.6 times the points
+        for a coarser step, took a third of a two-cause forecast's time)."""
         lo, hi = np.asarray(span[0], float), np.asarray(span[1], float)
+        best, d2 = self._nearest_on_grid(features, lo, hi, points)
+        cell = (hi - lo) / (points - 1)
+        return self._nearest_on_grid(features, np.maximum(lo, best - 2 * cell), np.minimum(hi, best + 2 * cell),
+                                     points) if np.all(cell > 0) else (best, d2)
+
+    def _nearest_on_grid(self, features, lo: np.ndarray, hi: np.ndarray, points: int) -> tuple[np.ndarray, float]:
         u, w = np.meshgrid(np.linspace(lo[0], hi[0], points), np.linspace(lo[1], hi[1], points))
         grid = np.stack([u.ravel(), w.ravel()], axis=1)
         d2, _ = self.distance(features, grid)
