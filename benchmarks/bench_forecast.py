@@ -17,6 +17,10 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
   * the information limit (one part wearing straight or speeding up): at half of the life, the Cramér–Rao bound
     on the remaining life from the robot's laps read through the twin (:mod:`tuner.prognostics.information`), and
     how often an unbiased forecast that good would meet α-λ;
+  * the exact posterior (one part wearing straight or speeding up): at half of the life, the posterior of the
+    filter's own model on the evidence the forecast gave its filter, by adaptive importance sampling
+    (tests/exact_posterior.py; without the rate's walk and renewals, which it does not model): its share of futures
+    speeding up and its median against the filter's and the truth, so a miss shows as the evidence's or the filter's;
   * the Monte Carlo's own error: the forecast at half of the life again on ``FILTER_SEEDS`` filter seeds (the
     races kept): the spread of their medians as a fraction of the true remaining life, and α-λ on each seed;
   * the forecast's wall time (a forecast must be ready within one lap at real time on 2 cores): each robot's
@@ -36,6 +40,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import math
 import os
@@ -56,6 +61,7 @@ from twin.core.digital_twin import DigitalTwin
 from twin.link.emulator import Drift
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+from exact_posterior import exact_posterior  # noqa: E402  (an independent estimator of the filter's posterior)
 from reference_gains import set_flags, tuned_gains  # noqa: E402  (the one home of tuned gains)
 
 PLAIN: dict[str, float] = {}  # the gains ``tune`` answers today for the robot as built, tuned by main
@@ -123,6 +129,26 @@ def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: 
             "alpha_lambda_attainable": round(within_alpha(true_rul, sd, ALPHA), 3)}
 
 
+def exact_check(drifts: list[str], twin: DigitalTwin, forecast, record: dict, now: int, true_rul: int,
+                seed: int) -> dict | None:
+    """The exact posterior of the filter's model at lap ``now`` on the evidence ``forecast``'s filter was given
+    (``record``, :class:`tuner.history.forecast.FilterInputs`) against what the filter said (None: a step, two
+    causes, or no filter ran for the soonest cause)."""
+    if len(drifts) != 1 or Drift.parse(drifts[0], twin).shape == "step" or forecast.address not in record:
+        return None
+    given = record[forecast.address]
+    if forecast.quantiles is None or not given.settings.one_way:
+        return None
+    settings = dataclasses.replace(given.settings, rate_walk=0.0, renewal=0.0)
+    exact = exact_posterior(given.measurements, given.outcomes, now, settings, given.failure, seed=seed,
+                            observations=given.observations, model=given.model)
+    shapes = forecast.shapes or {}
+    return {"now": now, "true_rul": true_rul, "exact_speeding_up": round(exact.speeding_up, 3),
+            "exact_median": exact.life.quantiles()["50"],  # None: beyond the horizon
+            "filter_speeding_up": round(shapes.get("speeding_up", {}).get("share", 0.0), 3),
+            "filter_median": forecast.laps_to_failure, "effective_draws": [round(e) for e in exact.effective]}
+
+
 def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int,
                  drifts: list[str] = ()) -> dict:
     """The forecasts at POINTS of the life, and every EVERY laps (for the prognostic horizon), from what the
@@ -144,14 +170,18 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
             for k, (t, x) in enumerate(robot_laps)]
     at = sorted({max(1, round(p * failed)) for p in POINTS} | set(range(EVERY, failed, EVERY)))
 
-    def forecast(now, filter_seed=None):
+    def forecast(now, filter_seed=None, record=None):
         t0 = time.perf_counter()
         f = soonest(history_forecasts(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], CAUSES,
-                                      now, seed=seed, filter_seed=filter_seed).values())
+                                      now, seed=seed, filter_seed=filter_seed, record=record).values())
         return f, time.perf_counter() - t0
 
+    half_now = min(at, key=lambda now: abs(now - LAMBDA * failed))  # the forecast nearest half of the life
+    given: dict = {}
     for now in at:
-        f, wall = forecast(now)
+        f, wall = forecast(now, record=given if now == half_now else None)
+        if now == half_now:
+            out["exact_at_half"] = exact_check(list(drifts), twin, f, given, now, failed - now, seed)
         q = f.quantiles
         out["forecasts"].append({"now": now, "true_rul": failed - now, "median": f.laps_to_failure, "cause": f.address,
                                  "lo": None if q is None else q["5"], "hi": None if q is None else q["95"],
@@ -295,6 +325,11 @@ def main() -> None:
             if f["at_point"]:
                 print(f"  {r['scenario']} seed {r['seed']}, lap {f['now']}: true {f['true_rul']} laps; "
                       f"{f['statement']}")
+        exact = r.get("exact_at_half")
+        if exact:
+            print(f"  {r['scenario']} seed {r['seed']}, exact posterior at lap {exact['now']}: speeding up "
+                  f"{exact['exact_speeding_up']:.0%} (filter {exact['filter_speeding_up']:.0%}), median "
+                  f"{exact['exact_median']} laps (filter {exact['filter_median']}), true {exact['true_rul']}")
         bound = r.get("information_limit")
         if bound:
             print(f"  {r['scenario']} seed {r['seed']}, information limit at lap {bound['now']}: remaining life "

@@ -48,6 +48,7 @@ from twin.errors import TwinError
 from twin.model.partial_models import default_space
 
 HELD_OUT = 20
+QUICK_SEEDS = 2  # --quick: noise seeds per scenario of the robust preset (the preset's own: ROBUST_SEEDS)
 OPTIONS = DescentOptions()  # --quick: one iteration
 
 
@@ -160,7 +161,7 @@ def plain(twin: DigitalTwin, envelope: Envelope, args, robust: dict) -> dict:
 def robust_cli(quick: bool) -> dict:
     """``python -m tuner --robust -q --json`` in its own process: the fields a user reads, and the process's wall."""
     cmd = [sys.executable, "-m", "tuner", "--robust", "-q", "--json",
-           *(["--max-iter", "1", "--held-out", "2"] if quick else [])]
+           *(["--max-iter", "1", "--held-out", "2", "--seeds", str(QUICK_SEEDS)] if quick else [])]
     t0 = time.perf_counter()
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
     wall = time.perf_counter() - t0
@@ -173,7 +174,7 @@ def robust_cli(quick: bool) -> dict:
 
 def print_robust(out: dict, envelope: Envelope) -> None:
     robust = out["robust"]
-    print(f"robust preset ({len(envelope.scenarios)} scenarios × {ROBUST_SEEDS} seeds, {ROBUST_RISK} lap), "
+    print(f"robust preset ({len(envelope.scenarios)} scenarios × {len(envelope.seeds)} seeds, {ROBUST_RISK} lap), "
           f"default robot and track")
 
     def row(name: str, r: dict, target: str = "") -> None:
@@ -209,7 +210,8 @@ def main() -> None:
     ap.add_argument("--step", type=one_step, default=None,
                     help="physics step [s] of the delivered side (default: the twin's default)")
     ap.add_argument("--quick", action="store_true",
-                    help="one iteration per search, CMA-ES 24 laps, one baseline at 1 ms, 2 held-out seeds (for CI)")
+                    help=f"one iteration per search, {QUICK_SEEDS} noise seeds per robust scenario, CMA-ES 24 laps, "
+                         "one baseline at 1 ms, 2 held-out seeds (for CI)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
     if args.quick:
@@ -219,7 +221,7 @@ def main() -> None:
     logging.disable(logging.WARNING)
     warnings.filterwarnings("ignore")
     twin = at_step(args.step)
-    envelope = Envelope.of(ROBUST_AXES, range(ROBUST_SEEDS))
+    envelope = Envelope.of(ROBUST_AXES, range(QUICK_SEEDS if args.quick else ROBUST_SEEDS))
     robust = tune(descend, twin, envelope, Risk.parse(ROBUST_RISK))
     robust["held_out"] = completion(twin, robust["gains"], envelope)
     robust["timestep_s"] = twin.space.get("motion.timestep")

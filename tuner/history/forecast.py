@@ -33,9 +33,9 @@ import math
 import numpy as np
 
 from tuner.history.trend import measured
-from tuner.prognostics import (FilterSettings, LapObservation, Measurement, ObservationModel, Outcome, estimate,
-                               life_sentence, measurement_sigma, remaining_life, retune_advice, service_advice,
-                               shape_sentence)
+from tuner.prognostics import (FailureModel, FilterSettings, LapObservation, Measurement, ObservationModel, Outcome,
+                               estimate, life_sentence, measurement_sigma, remaining_life, retune_advice,
+                               service_advice, shape_sentence)
 from tuner.prognostics.particle_filter import SCALE_PRIOR
 from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
 from tuner.history.twin_edge import twin_edge
@@ -58,6 +58,19 @@ MISFIT_LIMIT = SCALE_PRIOR[1] ** 2 * CHI2_999_WINDOW / MISFIT_WINDOW
 # where a parameter needs service, and what to do: the worn end of the robust envelope
 SERVICE = {"motion.mu": (min(ROBUST_AXES["motion.mu"]), "replace the tyres"),
            "motor.supply_voltage": (min(ROBUST_AXES["motor.supply_voltage"]), "charge or replace the battery")}
+
+
+@dataclasses.dataclass(frozen=True)
+class FilterInputs:
+    """What one cause's forecast gave its particle filter (:func:`tuner.prognostics.estimate`), as it gave it: for a
+    check of the filter against another estimator on the same evidence (benchmarks/bench_forecast.py)."""
+    measurements: tuple[Measurement, ...]
+    outcomes: tuple[Outcome, ...]
+    observations: tuple[LapObservation, ...]
+    model: ObservationModel | None
+    failure: FailureModel
+    settings: FilterSettings
+    now_lap: int
 
 
 @dataclasses.dataclass(frozen=True)
@@ -229,12 +242,14 @@ def observations_of(laps: list[dict], gains: dict, now_lap: int, offset: bool) -
 
 def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], address: str,
                      now_lap: int, seeds: int = EDGE_SEEDS, seed: int = 0, lap_timeout_s: float = LAP_TIMEOUT_S,
-                     settings: FilterSettings | None = None, filter_seed: int | None = None) -> Forecast:
+                     settings: FilterSettings | None = None, filter_seed: int | None = None,
+                     record: dict | None = None) -> Forecast:
     """When the ``gains`` in force first fail, from the robot's ``alignments`` of ``address`` (each with
     ``first_lap``, ``lap``, ``value``, ``interval``) and its ``laps`` (``n``, ``completed``, ``gains``,
     ``lap_time_s``, ``xte_mean_m``) up to ``now_lap``. Deterministic in its inputs and ``seed``, whatever their
     order. ``filter_seed`` (default ``seed``) seeds the particle filter and the Monte Carlo alone, the races kept:
-    another filter seed on the same evidence measures the estimate's own Monte Carlo error."""
+    another filter seed on the same evidence measures the estimate's own Monte Carlo error. ``record``: a dict
+    that gets the filter's inputs under ``address`` (:class:`FilterInputs`) when the filter runs."""
     filter_seed = seed if filter_seed is None else filter_seed
     p = twin.space.parameter(address)
     ms = [m for m in measurements_of(alignments, address) if m.lap <= now_lap]
@@ -297,6 +312,9 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     settings = settings or FilterSettings(span=span, value_range=(lo_range, hi_range),
                                           one_way=direction if service is not None else 0.0,
                                           edge_prior=EDGE_PRIOR * span)
+    if record is not None:
+        record[address] = FilterInputs(tuple(kept), tuple(outs), tuple(obs), model if obs else None, failure,
+                                       settings, now_lap)
     state = estimate(kept, outs, now_lap, settings, failure, filter_seed, obs, model)
     life = remaining_life(state, failure, settings.q, filter_seed + 1,
                           service_limit=service[0] if service is not None else None)

@@ -161,11 +161,13 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
 
 
 def forecasts_of(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], causes: list[str],
-                 now_lap: int, seed: int = 0, filter_seed: int | None = None) -> dict[str, Forecast]:
+                 now_lap: int, seed: int = 0, filter_seed: int | None = None,
+                 record: dict | None = None) -> dict[str, Forecast]:
     """{address: forecast} for each cause on its own and, when no one of the parts that wear explains the last laps
-    while two of them do wear, for both at once (:func:`forecast_two_causes`, keyed by :func:`joint_address`)."""
-    out = {a: forecast_failure(twin, gains, alignments, laps, a, now_lap, seed=seed, filter_seed=filter_seed)
-           for a in causes}
+    while two of them do wear, for both at once (:func:`forecast_two_causes`, keyed by :func:`joint_address`).
+    ``record``: each one-cause filter's inputs, by address (:func:`forecast_failure`)."""
+    out = {a: forecast_failure(twin, gains, alignments, laps, a, now_lap, seed=seed, filter_seed=filter_seed,
+                               record=record) for a in causes}
     worn = tuple(sorted(SERVICE))
     misfits = [out[a].misfit if a in out else None for a in worn]
     if len(worn) == 2 and all(m is not None and m > MISFIT_LIMIT for m in misfits):
