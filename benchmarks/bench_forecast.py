@@ -188,7 +188,7 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
                                  "numbered": q is not None, "statement": f.statement, "wall_s": round(wall, 2),
                                  "at_point": any(now == max(1, round(p * failed)) for p in POINTS)})
     # the Monte Carlo's own error: the forecast at half of the life again, on other filter seeds (the races kept)
-    half = min(out["forecasts"], key=lambda f: abs(f["now"] - LAMBDA * failed))  # its own seed's is made already
+    half = next(f for f in out["forecasts"] if f["now"] == half_now)  # its own seed's is made already
     others = [forecast(half["now"], filter_seed=k)[0].laps_to_failure for k in range(seed + 1, seed + FILTER_SEEDS)]
     out["filter_seeds_at_half"] = {"now": half["now"], "true_rul": half["true_rul"],
                                    "medians": [half["median"], *others]}

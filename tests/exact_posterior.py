@@ -48,16 +48,24 @@ class ExactPosterior:
     effective: tuple[float, float]
 
 
+def _at(theta: np.ndarray, curved: bool, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(value, rate, acceleration) of each life (v₀, r₀[, a]) ``k`` laps after its first."""
+    a = theta[:, 2] if curved else np.zeros(len(theta))
+    return theta[:, 0] + k * theta[:, 1] + a * k * (k - 1) / 2, theta[:, 1] + k * a, a
+
+
+def _shifts(failure: FailureModel, settings: FilterSettings) -> np.ndarray:
+    """The filter's grid of edge shifts (± 4 prior sd)."""
+    return math.hypot(failure.width, settings.edge_prior) * np.linspace(-4.0, 4.0, SHIFT_GRID)
+
+
 def _log_likelihood(theta: np.ndarray, curved: bool, evidence: tuple, start: int, settings: FilterSettings,
                     failure: FailureModel) -> tuple[np.ndarray, np.ndarray]:
     """(log likelihood of each life (n,), the log posterior of each life's shift on the grid (n, SHIFT_GRID))."""
     measurements, outcomes, observations, model = evidence
-    v0, r0 = theta[:, 0], theta[:, 1]
-    a = theta[:, 2] if curved else np.zeros(len(theta))
 
     def at(lap: int) -> tuple[np.ndarray, np.ndarray]:
-        k = lap - start
-        return v0 + k * r0 + a * k * (k - 1) / 2, r0 + k * a
+        return _at(theta, curved, lap - start)[:2]
 
     scales = np.exp(np.linspace(math.log(SCALE_PRIOR[0]), math.log(SCALE_PRIOR[1]), SCALE_GRID))
     by_scale = np.zeros((len(theta), SCALE_GRID))
@@ -70,7 +78,7 @@ def _log_likelihood(theta: np.ndarray, curved: bool, evidence: tuple, start: int
         by_scale += -0.5 * d2[:, None] / scales ** 2 - len(model.names) * np.log(scales) - 0.5 * logdet[:, None]
     log_scale = logsumexp(by_scale, axis=1) - math.log(SCALE_GRID)
     grid = np.linspace(-4.0, 4.0, SHIFT_GRID)
-    shifts = math.hypot(failure.width, settings.edge_prior) * grid
+    shifts = _shifts(failure, settings)
     by_shift = np.tile(-0.5 * grid ** 2 - logsumexp(-0.5 * grid ** 2), (len(theta), 1))
     for o in outcomes:
         v, _ = at(o.lap)
@@ -136,8 +144,8 @@ def exact_posterior(measurements: Sequence[Measurement], outcomes: Sequence[Outc
     log_z = np.array([s[3] for s in shapes])
     speeding_up = float(np.exp(log_z[1] - logsumexp(log_z)))
     # equally weighted lives for the prediction: each shape its share of them, by its own weights
-    lives = {"v": [], "r": [], "a": [], "shift": [], "curved": []}
-    grid = math.hypot(failure.width, settings.edge_prior) * np.linspace(-4.0, 4.0, SHIFT_GRID)
+    lives = {"v": [], "r": [], "a": [], "shift": []}
+    grid = _shifts(failure, settings)
     step = grid[1] - grid[0]
     effective = []
     for curved, (theta, logw, shift_post, _) in zip((False, True), shapes):
@@ -146,12 +154,9 @@ def exact_posterior(measurements: Sequence[Measurement], outcomes: Sequence[Outc
         effective.append(float(1 / np.sum(w ** 2)))
         n = int(round(futures * (speeding_up if curved else 1 - speeding_up)))
         idx = rng.choice(len(w), size=n, p=w)
-        k = now - start
-        a = theta[idx, 2] if curved else np.zeros(n)
-        lives["v"].append(theta[idx, 0] + k * theta[idx, 1] + a * k * (k - 1) / 2)
-        lives["r"].append(theta[idx, 1] + k * a)
-        lives["a"].append(a)
-        cb = np.cumsum(np.exp(shift_post[idx]), axis=1)
+        for name, x in zip(("v", "r", "a"), _at(theta[idx], curved, now - start)):
+            lives[name].append(x)
+        cb = np.cumsum(np.exp(shift_post[idx]), axis=1)  # each life's shift by its own posterior on the grid
         pick = np.minimum((cb < rng.random(n)[:, None] * cb[:, -1:]).sum(axis=1), SHIFT_GRID - 1)
         lives["shift"].append(grid[pick] + step * (rng.random(n) - 0.5))
     v, r, a, shift = (np.concatenate(lives[x]) for x in ("v", "r", "a", "shift"))
