@@ -12,10 +12,10 @@
 
   python benchmarks/bench_case_studies.py [--no-design] [--trials N] [--quick] [--json]
 
-``--trials N``: robots per procedure in the coverage study (default 30; 0 skips it). ``--quick``: gains tuned for
-one iteration, each alignment stopped after 2 iterations (the lap time's on one noise seed, the recorded run's of
-R_M alone), 1 robot per procedure, a study of 2 designs × 2 laps tuned for one iteration (for CI: the script cannot
-rot; the figures are not the table's).
+``--trials N``: robots per procedure in the coverage study (default 30; 0 skips it). ``--quick``: the same gains
+(tuned once per code by tests/reference_gains.py, whose answer the tests' run shares), each alignment stopped after
+2 iterations (the lap time's on one noise seed, the recorded run's of R_M alone), 1 robot per procedure, a study of
+2 designs × 2 laps tuned for one iteration (for CI: the script cannot rot; the figures are not the table's).
 """
 
 from __future__ import annotations
@@ -68,14 +68,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--no-design", action="store_true", help="skip the design study")
     ap.add_argument("--quick", action="store_true",
-                    help="one tuning iteration, 2 alignment iterations, 2 designs (for CI)")
+                    help="2 alignment iterations, 1 robot per procedure, 2 designs (for CI)")
     ap.add_argument("--trials", type=int, default=30, help="robots per procedure in the coverage study (default 30)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     out = {"cores": os.cpu_count()}
     iterations = {"max_iter": 2} if args.quick else {}
 
-    gains = tuned_gains(*(["--max-iter", "1"] if args.quick else []))
+    gains = tuned_gains()
     t = DigitalTwin()
     t.update(gains)
     measured = run_laps(t, [{"motion.mu": HIDDEN_MU}], seed=ROBOT_SEED0)[0].lap_time_s

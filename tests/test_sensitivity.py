@@ -87,6 +87,9 @@ def test_a_failed_lap_has_zero_completion_and_no_value_written_in(monkeypatch):
     and decomposed the variance of that made-up function)."""
     done, failed = lap_outputs(_lap(True)), lap_outputs(_lap(False))
     assert done == {"lap_time_s": 12.0, "completed": 1.0, "energy_j": 9.0, "max_cross_track_m": 0.01}
+    # the failed lap ran 4 s, drew 2.5 J and left the track by 0.101 m: none of it is a lap's value
+    assert failed["completed"] == 0.0 and all(math.isnan(failed[k]) for k in ("lap_time_s", "energy_j",
+                                                                             "max_cross_track_m"))
     laps = [_lap(True), _lap(True, lap_time_s=14.0, energy_j=11.0), _lap(False), _lap(True, lap_time_s=13.0)]
     monkeypatch.setattr(lap_model, "run_laps", lambda twin, variants, **kw: laps[:len(variants)])
     out = lap_model.LapModel(DigitalTwin(track="circle"))(["motion.mu"], np.array([[0.9], [0.8], [0.7], [0.6]]))

@@ -11,7 +11,6 @@
 
 from __future__ import annotations
 
-import json
 
 import mujoco
 import numpy as np

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 from lf_common.errors import LineFollowerError
 from lf_common.files import check_output_dir
