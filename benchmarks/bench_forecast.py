@@ -77,7 +77,6 @@ SCENARIOS = {  # name: (drifts, laps run at most)
 QUICK = {"linear": (["motion.mu=0.9:0.6@24"], 24)}  # --quick: a linear wear those gains fail on near lap 17 …
 # … on these gains (tests/test_forecast_drift.py's, held fixed there), in the caller's cache folder
 QUICK_GAINS = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
-OWN_CACHES = [True]  # each robot's races in a cache folder of its own (so their wall time is measured); --quick: not
 POINTS = (0.3, 0.5, 0.7, 0.9)  # forecasts at these fractions of the life (first failed lap) …
 EVERY = 5  # … and every this many laps (for the prognostic horizon)
 CAUSES = sorted(SERVICE)  # what history forecasts for a robot: each part that wears; the soonest is the forecast
@@ -87,9 +86,11 @@ FILTER_SEEDS = 4  # the forecast at half of the life on this many filter seeds: 
 SEED, SEED_STEP = 7, 1000  # the robots' emulate --seed: 7, 1007, … (each robot's laps use SEED + lap)
 
 
-def run_robot(folder: str, drifts: list[str], laps: int, seed: int, speed: float) -> tuple[dict, list]:
-    """One robot watched by plain live: (live's JSON, the robot's own laps (completed, lap time))."""
-    env = {**os.environ, **({"TWIN_CACHE_DIR": os.path.join(folder, "cache")} if OWN_CACHES[0] else {})}
+def run_robot(folder: str, drifts: list[str], laps: int, seed: int, speed: float,
+              own_cache: bool = True) -> tuple[dict, list]:
+    """One robot watched by plain live: (live's JSON, the robot's own laps (completed, lap time)). ``own_cache``:
+    its races in a cache folder of its own (so their wall time is measured), else in the caller's (--quick)."""
+    env = {**os.environ, **({"TWIN_CACHE_DIR": os.path.join(folder, "cache")} if own_cache else {})}
     emu = subprocess.Popen([*RUN, "emulate", "--tcp", "0", "--speed", str(speed), "--laps", str(laps), "--seed",
                             str(seed), *[w for d in drifts for w in ("--drift", d)], "--echo", "echo.txt", "--json",
                             *GAINS], cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
@@ -154,12 +155,12 @@ def exact_check(drifts: list[str], twin: DigitalTwin, forecast, record: dict, no
 
 
 def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int,
-                 drifts: list[str] = ()) -> dict:
+                 drifts: list[str] = (), own_cache: bool = True) -> dict:
     """The forecasts at POINTS of the life, and every EVERY laps (for the prognostic horizon), from what the
     history would hold: live's alignments and the robot's laps (lap time, the line's mean offset)."""
     lap_times = [t for t, _ in robot_laps]
     twin_edge.forget_races()  # each robot's first forecast reads the races its live ran ahead, in its cache folder
-    if OWN_CACHES[0]:
+    if own_cache:  # (as run_robot ran it)
         twin_edge.RACES = os.path.join(folder, "cache", "twin-edges")
     ahead = doc.get("race_ahead") or {}
     failed = next((k for k, t in enumerate(lap_times) if t is None), None)
@@ -280,7 +281,6 @@ def main() -> None:
         SCENARIOS.clear()
         SCENARIOS.update(QUICK)
         args.seeds, args.speed, args.scenario = 1, 20.0, None
-        OWN_CACHES[0] = False
     PLAIN.update(QUICK_GAINS if args.quick else tuned_gains())
     GAINS[:] = set_flags(PLAIN)
     names = args.scenario or list(SCENARIOS)
@@ -307,7 +307,7 @@ def main() -> None:
                     return job, folder, (json.load(f), robot_laps_of(folder))
             os.makedirs(folder)
             drifts, laps = SCENARIOS[name]
-            return job, folder, run_robot(folder, drifts, laps, seed, args.speed)
+            return job, folder, run_robot(folder, drifts, laps, seed, args.speed, not args.quick)
 
         with ThreadPoolExecutor(args.parallel) as pool:
             for (name, seed), folder, (doc, robot_laps) in pool.map(one, jobs):
@@ -315,7 +315,7 @@ def main() -> None:
                       f"{next((k for k, (t, _) in enumerate(robot_laps) if t is None), None)}, "
                       f"{len(doc['alignments'])} alignments", file=sys.stderr)
                 runs.append({"scenario": name, "seed": seed,
-                             **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0])})
+                             **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0], not args.quick)})
     result = {"speed": args.speed, "seeds": args.seeds, "wall_s": round(time.monotonic() - t0, 1),
               "all": metrics(runs), "by_scenario": {n: metrics([r for r in runs if r["scenario"] == n]) for n in names},
               "runs": runs}
