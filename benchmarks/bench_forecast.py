@@ -63,7 +63,7 @@ from twin.link.emulator import Drift
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 from exact_posterior import exact_posterior  # noqa: E402  (an independent estimator of the filter's posterior)
-from reference_gains import set_flags, tuned_gains  # noqa: E402  (the one home of tuned gains)
+from reference_gains import PLAIN_HELD, set_flags, tuned_gains  # noqa: E402  (the one home of tuned gains)
 
 PLAIN: dict[str, float] = {}  # the gains ``tune`` answers today for the robot as built, tuned by main
 GAINS: list[str] = []  # the same, as --set flags
@@ -75,8 +75,8 @@ SCENARIOS = {  # name: (drifts, laps run at most)
     "two causes": (["motion.mu=0.9:0.6@60", "motor.supply_voltage=6.0:4.0@60"], 80),
 }
 QUICK = {"linear": (["motion.mu=0.9:0.6@24"], 24)}  # --quick: a linear wear those gains fail on near lap 17 …
-# … on these gains (tests/test_forecast_drift.py's, held fixed there), in the caller's cache folder
-QUICK_GAINS = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+# … on the gains the tests hold fixed (tests/reference_gains.py), in the caller's cache folder
+QUICK_GAINS = PLAIN_HELD
 POINTS = (0.3, 0.5, 0.7, 0.9)  # forecasts at these fractions of the life (first failed lap) …
 EVERY = 5  # … and every this many laps (for the prognostic horizon)
 CAUSES = sorted(SERVICE)  # what history forecasts for a robot: each part that wears; the soonest is the forecast

@@ -34,7 +34,7 @@ from twin.telemetry.wire import Header, Reply, gains_to_wire
 # answer today (the plain_gains fixture): the scenario is built on where they fail, somewhere below μ ≈ 0.75 (today's
 # answer holds to about 0.67, and would move whenever the tuner does); the test asserts that premise (plain sees
 # failures)
-PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+from reference_gains import PLAIN_HELD as PLAIN
 GAINS = [w for a, v in PLAIN.items() for w in ("--set", f"{a}={v}")]
 DRIFT = "motion.mu=0.84:0.6@16"  # plain gains fail from about lap 7 on
 LAPS = 12
@@ -303,6 +303,9 @@ def test_a_store_the_robot_never_answers_is_reported_not_stored_everywhere(tmp_p
     assert not (tmp_path / "eeprom.bin").exists()  # nothing was ever stored (the image is made at the first write)
 
 
+BUSY_LAPS = 9  # the busy machine's run: DRIFT's wear in 9 laps (failures from about lap 5), re-tunes at laps 6 and 9
+
+
 def test_live_act_in_lockstep_keeps_its_robot_on_a_machine_busy_on_every_core(tmp_path):
     """The documented pairing, `emulate --lockstep` with `live --act --act-every 3` at their default timeouts, while
     a CPU-bound process runs on each of the machine's cores (started here): no dropped link, no robot timeout,
@@ -315,9 +318,10 @@ def test_live_act_in_lockstep_keeps_its_robot_on_a_machine_busy_on_every_core(tm
 
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
     try:
-        emu = robot(tmp_path, "--laps", 16, "--drift", DRIFT, "--lockstep", "--echo", "echo.txt")
-        live = Pumped([*RUN, "live", "--port", link(emu), *GAINS, "--laps", "16", "--json", "--act", "--act-every",
-                       "3"], cwd=tmp_path)
+        emu = robot(tmp_path, "--laps", BUSY_LAPS, "--drift", f"motion.mu=0.84:0.6@{BUSY_LAPS}", "--lockstep",
+                    "--echo", "echo.txt")
+        live = Pumped([*RUN, "live", "--port", link(emu), *GAINS, "--laps", str(BUSY_LAPS), "--json", "--act",
+                       "--act-every", "3"], cwd=tmp_path)
         code, out, err = live.wait(timeout=600)
         _, emu_out, emu_err = emu.wait(timeout=120)
     finally:
@@ -326,9 +330,9 @@ def test_live_act_in_lockstep_keeps_its_robot_on_a_machine_busy_on_every_core(tm
             b.wait()
     assert code == 0, err[-3000:]
     doc = json.loads(out)
-    assert doc["reconnects"] == 0 and doc["laps"] == 16, err[-3000:]
+    assert doc["reconnects"] == 0 and doc["laps"] == BUSY_LAPS, err[-3000:]
     assert "stops" not in emu_out + emu_err and "no command" not in emu_out + emu_err
-    assert len(echoed_laps(tmp_path / "echo.txt")) == 16
+    assert len(echoed_laps(tmp_path / "echo.txt")) == BUSY_LAPS
     retunes = [a for a in doc["actions"] if a["kind"] == "retune"]
     assert retunes, doc["actions"]
     for a in retunes:  # late or not, a re-tune says what it did, and what it cost against what it was allowed

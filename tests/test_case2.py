@@ -91,7 +91,8 @@ def test_a_fit_stopped_on_the_ridge_says_so_and_states_no_interval_that_misses(r
 
 def test_a_parameter_the_run_cannot_pin_is_named_with_the_evidence(robust_twin, tmp_path):
     """Grippy tyres on a tired battery: the robot never needs all its grip, so any μ above what it needs fits as
-    well; the battery is pinned."""
+    well; the battery is pinned (the suite's check of a fit that names one parameter not identifiable beside one it
+    pins)."""
     hidden = {"motion.mu": 1.2, "motor.supply_voltage": 4.9}
     tel = read_telemetry(record(robust_twin, hidden, tmp_path / "run.jsonl"))
     mu, volts = align_telemetry(robust_twin, tel, ["motion.mu", "motor.supply_voltage"]).parameters

@@ -15,7 +15,7 @@ from twin.core.lap import LapLimits
 
 # held fixed on purpose (test_history's and test_act's gains, not the tuner's answer today): aggressive gains whose
 # failures begin below μ ≈ 0.73 and come and go below that (a wrong-way band)
-PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+from reference_gains import PLAIN_HELD as PLAIN
 LIMITS = LapLimits(timeout_s=30.0)
 LAPS = 40
 

@@ -20,7 +20,7 @@ from stand_in import robot_laps
 # held fixed on purpose, not the tuner's answer today (the plain_gains fixture): the scenario (its seeds, its drift)
 # is built on where these gains fail, below μ ≈ 0.75, and a calibrated interval may miss one scenario in ten, so
 # the scenario must not move when the tuner does; the test asserts its premise (the first failure within the run)
-PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+from reference_gains import PLAIN_HELD as PLAIN
 LAPS, EVERY = 70, 5  # laps run; an alignment on laps k-1, k every EVERY laps
 
 

@@ -22,7 +22,7 @@ from twin.telemetry.wire import Boot, Event, Header, Reply, Sample, encode
 
 # held fixed on purpose, not the tuner's answer today (the plain_gains fixture): test_act's gains, which the twin
 # fails below μ ≈ 0.75, the premise of the forecast test's hand calculation; elsewhere only values in records
-PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+from reference_gains import PLAIN_HELD as PLAIN
 NEW = {"control.v_max": 1.1, "control.kb": 0.2, "control.kp": 31.0, "control.ki": 0.0, "control.kd": 1.12}  # arbitrary: a second set for the records
 
 

@@ -19,7 +19,7 @@ from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 
 # fixed on purpose: the races of any gains will do, and these fail within the range raced (a failure model to read)
-PLAIN = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+from reference_gains import PLAIN_HELD as PLAIN
 LAPS = 9  # a forecast of a part that wears needs 8 timed laps
 
 

@@ -60,25 +60,6 @@ def test_two_hidden_parameters_are_recovered_from_the_traces(oval, recorded):
     assert oval.space.get("motor.R_M") != 10.0  # the twin itself is left as it was
 
 
-@pytest.fixture(scope="module")
-def recorded_r_m(oval, tmp_path_factory):
-    """A 'robot' whose winding resistance alone differs, on its own noise seed."""
-    lap = run_laps(oval, [{"motor.R_M": 10.0}], seed=7)[0]
-    path = tmp_path_factory.mktemp("tel") / "lap.jsonl"
-    write_telemetry(str(path), lap_lines(lap, {"track": "oval", "sensors": 8, "dt_s": 0.005, "gains": GAINS}, 2))
-    return str(path)
-
-
-def test_a_parameter_the_run_does_not_exercise_is_reported(oval, recorded_r_m):
-    """At v_max 1 m/s the tyres never reach their grip limit: μ cannot be seen in the traces. (The fitted pair must
-    be able to explain the run: with the motors' datasheet losses (issue 33) R_M no longer stands in for a K the fit
-    holds fixed, and a misspecified fit leans on μ instead; so this run differs from the twin in R_M alone.)"""
-    r = align_telemetry(oval, read_telemetry(recorded_r_m), ["motion.mu", "motor.R_M"])
-    mu, rm = r.parameters
-    assert not mu.identifiable and "not identifiable" in mu.note
-    assert rm.identifiable and rm.value == pytest.approx(10.0, rel=0.05)
-
-
 @pytest.mark.parametrize("body, needle", [
     ('{"type":"header","format":"lf-telemetry","version":1,"dt_s":0.005,"sensors":8}\n{"type":"sample","t":0}\n',
      ":2: field 'pos' must be a finite number"),

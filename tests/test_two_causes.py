@@ -152,7 +152,8 @@ def test_a_robot_whose_grip_and_battery_wear_together_is_forecast_from_both_and_
     from tuner.history.two_causes import forecasts_of, joint_address
     from twin.core.digital_twin import DigitalTwin
 
-    plain = {"control.v_max": 1.5, "control.kb": 0.125, "control.kp": 33.52, "control.ki": 0.0, "control.kd": 1.118}
+    from reference_gains import PLAIN_HELD as plain
+
     twin = DigitalTwin()
     twin.model()
     laps = robot_laps(twin, plain, ["motion.mu=0.95:0.5@50", "motor.supply_voltage=6.1:4.0@50"], 56, 900)

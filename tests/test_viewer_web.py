@@ -10,6 +10,7 @@ and Playwright's Python package (the ``test`` extra), pointed at the system brow
 from __future__ import annotations
 
 import difflib
+import fcntl
 import os
 import re
 import shutil
@@ -48,12 +49,12 @@ PANELS = {
 }
 
 
-@pytest.fixture(scope="module")
-def recordings(tmp_path_factory):
-    """One small recording of each kind, made by the project's own commands."""
-    d = tmp_path_factory.mktemp("rrd")
-    log = d / "robot.log"
-    log.write_text("".join(line for _, line in lap_records(DigitalTwin(track="oval"), 7, 4, 2)))
+@pytest.fixture(scope="session")
+def recordings(run_folder):
+    """One small recording of each kind, made by the project's own commands, once for the run: both pytest processes
+    run this module's tests (worksteal), and the second reads the first's (a lock; a making that failed leaves no
+    ``done`` mark, so the next one makes them again)."""
+    d = run_folder / "viewer-recordings"
     oval = ["--track", "oval"]
     commands = {
         "lap": ["lap", *oval],
@@ -61,14 +62,19 @@ def recordings(tmp_path_factory):
         "align": ["align", *oval, "--measured-lap-time", "9"],
         "design": ["design", *oval, "--grid", "cad.S=0.05,0.07", "--laps", "1", "--max-iter", "1", "--workers", "1",
                    "--out-dir", str(d / "study"), "-q"],
-        "live": ["live", *oval, "--replay", str(log)],
+        "live": ["live", *oval, "--replay", str(d / "robot.log")],
     }
-    out = {}
-    for kind, args in commands.items():
-        path = d / f"{kind}.rrd"
-        r = subprocess.run([*RUN, *args, "--save", str(path)], capture_output=True, text=True, timeout=900)
-        assert r.returncode in (0, 1) and path.is_file(), (kind, r.stderr)
-        out[kind] = str(path)
+    out = {kind: str(d / f"{kind}.rrd") for kind in commands}
+    with open(run_folder / "viewer-recordings.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (d / "done").is_file():
+            shutil.rmtree(d, ignore_errors=True)  # (a making that failed: ours, in the run's folder)
+            d.mkdir()
+            (d / "robot.log").write_text("".join(line for _, line in lap_records(DigitalTwin(track="oval"), 7, 4, 2)))
+            for kind, args in commands.items():
+                r = subprocess.run([*RUN, *args, "--save", out[kind]], capture_output=True, text=True, timeout=900)
+                assert r.returncode in (0, 1) and os.path.isfile(out[kind]), (kind, r.stderr)
+            (d / "done").touch()
     return out
 
 
