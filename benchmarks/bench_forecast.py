@@ -27,7 +27,10 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
     ``live --race-ahead`` races its gains on the twin in the background for each cause (each robot with a cache
     folder of its own): how long that took, against the laps a forecast waits for (``MIN_TIMED_LAPS``) at real
     time; the first forecast, on those races (a robot kept by an older ``--keep`` has none: its first forecast
-    races the twin); and once more after forgetting them, as a new ``history`` process does.
+    races the twin); and once more after forgetting them, as a new ``history`` process does. At real time: is the
+    first forecast, and the first of both parts at once (the first lap, read lap by lap, where no part alone
+    explains the laps: it needs the race-ahead's rows of both), ready within a lap of being asked, given when this
+    run's races were done (each entry's time in the robot's cache folder) and the forecast's own wall time?
 
   python benchmarks/bench_forecast.py [--seeds 2] [--speed 10] [--scenario NAME ...] [--keep DIR | --again DIR]
                                       [--quick] [--json]
@@ -56,7 +59,7 @@ from tuner.history.forecast import MIN_TIMED_LAPS, SERVICE, race_ahead
 from tuner.history.ingest import cross_track
 from tuner.history.report import soonest
 from tuner.history import twin_edge
-from tuner.history.two_causes import forecasts_of as history_forecasts
+from tuner.history.two_causes import forecasts_of as history_forecasts, joint_address
 from tuner.prognostics.information import remaining_life_bound, within_alpha
 from twin.core.digital_twin import DigitalTwin
 from twin.link.emulator import Drift
@@ -95,6 +98,7 @@ def run_robot(folder: str, drifts: list[str], laps: int, seed: int, speed: float
                             str(seed), *[w for d in drifts for w in ("--drift", d)], "--echo", "echo.txt", "--json",
                             *GAINS], cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
     url = json.loads(emu.stdout.readline())["link"]
+    started = time.time()  # (the races start a moment after live: its imports; so the times below are upper ones)
     live = subprocess.run([*RUN, "live", "--port", url, "--laps", str(laps), "--json", "--race-ahead", *GAINS],
                           cwd=folder, capture_output=True, text=True, env=env)
     emu.wait(timeout=120)
@@ -102,7 +106,23 @@ def run_robot(folder: str, drifts: list[str], laps: int, seed: int, speed: float
         raise RuntimeError(f"live failed in {folder}: {live.stderr[-2000:]}")
     with open(os.path.join(folder, "live.json"), "w") as f:
         f.write(live.stdout)
+    if own_cache:
+        with open(os.path.join(folder, RACES_DONE), "w") as f:
+            json.dump(races_done(os.path.join(folder, "cache", twin_edge.RACES), started), f)
     return json.loads(live.stdout), robot_laps_of(folder)
+
+
+RACES_DONE = "races_done.json"  # a robot's folder: when each race live ran ahead was written, [s] after live started
+
+
+def races_done(folder: str, started: float) -> list[float]:
+    """When each race in ``folder`` was written (its entry's race.json), seconds after ``started``, in order:
+    the race-ahead races the parts that wear one by one, then the rows of both at once
+    (:mod:`tuner.history.race_ahead`), so the first ``len(SERVICE)`` are the one-cause races."""
+    if not os.path.isdir(folder):
+        return []
+    return sorted(round(os.path.getmtime(os.path.join(folder, e, "race.json")) - started, 1)
+                  for e in os.listdir(folder) if os.path.isfile(os.path.join(folder, e, "race.json")))
 
 
 def robot_laps_of(folder: str) -> list:
@@ -165,7 +185,7 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     ahead = doc.get("race_ahead") or {}
     failed = next((k for k, t in enumerate(lap_times) if t is None), None)
     done = [t for t in lap_times if t is not None]
-    out = {"first_failed_lap": failed, "forecasts": [], "race_ahead_state": ahead.get("state"),
+    out = {"first_failed_lap": failed, "forecasts": [], "race_ahead_state": ahead.get("state"), "lap_times": lap_times,
            "race_ahead_wall_s": ahead.get("wall_s"),
            # what the races must beat: the laps a forecast waits for, at real time
            "min_timed_laps_s": round(MIN_TIMED_LAPS * statistics.median(done), 1) if done else None}
@@ -176,11 +196,16 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
             for k, (t, x) in enumerate(robot_laps)]
     at = sorted({max(1, round(p * failed)) for p in POINTS} | set(range(EVERY, failed, EVERY)))
 
+    joint = joint_address(tuple(sorted(SERVICE)))
+    made_joint = set()  # the laps whose forecasts include one of both parts at once
+
     def forecast(now, filter_seed=None, record=None):
         t0 = time.perf_counter()
-        f = soonest(history_forecasts(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], CAUSES,
-                                      now, seed=seed, filter_seed=filter_seed, record=record).values())
-        return f, time.perf_counter() - t0
+        fs = history_forecasts(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], CAUSES, now,
+                               seed=seed, filter_seed=filter_seed, record=record)
+        if joint in fs:
+            made_joint.add(now)
+        return soonest(fs.values()), time.perf_counter() - t0
 
     half_now = min(at, key=lambda now: abs(now - LAMBDA * failed))  # the forecast nearest half of the life
     given: dict = {}
@@ -192,7 +217,17 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
         out["forecasts"].append({"now": now, "true_rul": failed - now, "median": f.laps_to_failure, "cause": f.address,
                                  "lo": None if q is None else q["5"], "hi": None if q is None else q["95"],
                                  "numbered": q is not None, "statement": f.statement, "wall_s": round(wall, 2),
+                                 "joint": now in made_joint,
                                  "at_point": any(now == max(1, round(p * failed)) for p in POINTS)})
+    first = next((f for f in out["forecasts"] if f["numbered"]), None)
+    if first is not None:  # the first forecast with a number, as a new history process makes it (races read back)
+        twin_edge.forget_races()
+        out["first_numbered"] = {"now": first["now"], "wall_s": round(forecast(first["now"])[1], 2)}
+    out["first_joint"] = first_joint(twin, aligned, laps, out["forecasts"], seed)
+    done_path = os.path.join(folder, RACES_DONE)
+    if os.path.isfile(done_path):
+        with open(done_path) as f:
+            out["races_done_s"] = json.load(f)
     # the Monte Carlo's own error: the forecast at half of the life again, on other filter seeds (the races kept)
     half = next(f for f in out["forecasts"] if f["now"] == half_now)  # its own seed's is made already
     others = [forecast(half["now"], filter_seed=k)[0].laps_to_failure for k in range(seed + 1, seed + FILTER_SEEDS)]
@@ -203,6 +238,52 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     again, wall = forecast(at[-1])
     assert again.quantiles == f.quantiles and again.statement == f.statement, "a race read back is not the race"
     out["cached_wall_s"] = round(wall, 2)
+    return out
+
+
+def first_joint(twin: DigitalTwin, aligned: list, laps: list, made: list[dict], seed: int) -> dict | None:
+    """The first lap whose forecast is of both parts at once (none of them alone explains the laps: the one that
+    needs the race-ahead's rows of both): {"now", "wall_s"}, the laps between the benchmark's forecasts read one by
+    one; None if no forecast of the run was of both."""
+    joint = joint_address(tuple(sorted(SERVICE)))
+    later = next((k for k, f in enumerate(made) if f["joint"]), None)
+    if later is None:
+        return None
+    before = made[later - 1]["now"] if later else 0
+    for now in range(before + 1, made[later]["now"]):
+        twin_edge.forget_races()  # as the first forecast of both at once would: the rows read from the cache folder
+        t0 = time.perf_counter()
+        fs = history_forecasts(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], CAUSES, now,
+                               seed=seed)
+        if joint in fs:
+            return {"now": now, "wall_s": round(time.perf_counter() - t0, 2)}
+    return {"now": made[later]["now"], "wall_s": made[later]["wall_s"]}
+
+
+def ready_within_a_lap(r: dict) -> dict | None:
+    """Whether a robot at real time would have had its first forecast, and its first of both parts at once, within
+    one lap of asking: asked when the lap is in (``MIN_TIMED_LAPS`` timed laps; the first lap of both at once), at
+    the robot's median lap time; ready when the races it needs are done (as this run's race-ahead wrote them: at
+    a pace above real time live works harder beside them, so they are slower here than at real time) and it is
+    computed (its wall time here, the races read). None without the races' times (a robot kept by an older run)."""
+    done = r.get("races_done_s")
+    times = [t for t in r.get("lap_times", []) if t is not None]
+    if not done or not times:
+        return None
+    lap_s = statistics.median(times)
+    out = {"lap_s": round(lap_s, 2)}
+
+    def ready(asked_s, races_s, wall_s):
+        late = max(0.0, races_s - asked_s) + wall_s
+        return {"asked_s": round(asked_s, 1), "races_done_s": races_s, "wall_s": wall_s,
+                "late_s": round(late, 1), "within_a_lap": late <= lap_s}
+
+    one = r.get("first_numbered")  # asked at the earliest: when the laps a forecast waits for are in
+    if one is not None and len(done) >= len(SERVICE):
+        out["first"] = ready(MIN_TIMED_LAPS * lap_s, done[len(SERVICE) - 1], one["wall_s"])
+    if r.get("first_joint"):
+        j = r["first_joint"]
+        out["first_joint"] = {"now": j["now"], **ready((j["now"] + 1) * lap_s, done[-1], j["wall_s"])}
     return out
 
 
@@ -244,6 +325,9 @@ def metrics(runs: list[dict]) -> dict:
     per_seed = [m is not None and abs(m - h["true_rul"]) <= ALPHA * h["true_rul"] for h in seeded
                 for m in h["medians"]]
     bounds = [r["information_limit"]["alpha_lambda_attainable"] for r in runs if r.get("information_limit")]
+    ready = [x for r in runs if (x := ready_within_a_lap(r))]
+    firsts = [x["first"] for x in ready if "first" in x]
+    joints = [x["first_joint"] for x in ready if "first_joint" in x]
     return {"forecasts": len(points), "without_a_number": silent,
             "coverage_90": round(sum(map(_covered, points)) / len(points), 3) if points else None,
             "median_width_laps": statistics.median(widths) if widths else None,
@@ -258,6 +342,11 @@ def metrics(runs: list[dict]) -> dict:
             "forecast_wall_s_median": statistics.median(walls) if walls else None,
             "cached_forecast_wall_s_max": max(cached) if cached else None,
             "cached_forecast_wall_s_median": statistics.median(cached) if cached else None,
+            # at real time (ready_within_a_lap): the first forecast, and the first of both parts at once
+            "first_forecast_within_a_lap": f"{sum(x['within_a_lap'] for x in firsts)}/{len(firsts)}",
+            "first_forecast_late_s_max": max((x["late_s"] for x in firsts), default=None),
+            "first_joint_within_a_lap": f"{sum(x['within_a_lap'] for x in joints)}/{len(joints)}",
+            "first_joint_late_s_max": max((x["late_s"] for x in joints), default=None),
             "filter_seed_spread_median": round(statistics.median(spreads), 3) if spreads else None,
             "filter_seed_spread_max": round(max(spreads), 3) if spreads else None,
             "alpha_lambda_met_per_filter_seed": round(sum(per_seed) / len(per_seed), 3) if per_seed else None,
@@ -336,6 +425,15 @@ def main() -> None:
             print(f"  {r['scenario']} seed {r['seed']}, exact posterior at lap {exact['now']}: speeding up "
                   f"{exact['exact_speeding_up']:.0%} (filter {exact['filter_speeding_up']:.0%}), median "
                   f"{exact['exact_median']} laps (filter {exact['filter_median']}), true {exact['true_rul']}")
+        ready = ready_within_a_lap(r)
+        for what, x in [("first forecast", (ready or {}).get("first")),
+                        ("first forecast of both at once", (ready or {}).get("first_joint"))]:
+            if x:
+                at = f" (lap {x['now']})" if "now" in x else ""
+                print(f"  {r['scenario']} seed {r['seed']}, {what}{at} at real time: asked {x['asked_s']} s after "
+                      f"live started, its races done at {x['races_done_s']} s, {x['wall_s']} s to compute: ready "
+                      f"{x['late_s']} s after asking, {'within' if x['within_a_lap'] else 'not within'} a lap "
+                      f"({ready['lap_s']} s)")
         bound = r.get("information_limit")
         if bound:
             print(f"  {r['scenario']} seed {r['seed']}, information limit at lap {bound['now']}: remaining life "

@@ -1,24 +1,34 @@
 """Cache entries that are checked, not trusted: each is a folder built in private and published by one rename,
 with a manifest of its files' SHA-256 that is verified every time the entry is used.
 
-* Two processes building the same entry at once both build; the first rename wins and the other uses the
-  winner's entry (its own copy is discarded).
+* A process that finds the entry being built by another waits for it (a lock beside the entry, up to
+  ``BUILD_WAIT_S``) instead of building it again (a race of the twin is minutes of CPU); past that wait, or where
+  the lock cannot be had, both build, the first rename wins and the other uses the winner's entry.
 * An entry whose files are missing, changed, truncated or joined by strangers is set aside and rebuilt, with
   a warning naming it; nothing outside the cache folder is touched.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import shutil
 import tempfile
-from typing import Callable
+import time
+from typing import Callable, Iterator
+
+try:
+    import fcntl
+except ImportError:  # (not POSIX: no lock; two builders of one entry both build, as the rename allows)
+    fcntl = None
 
 from lf_common.errors import LineFollowerError
 from lf_common.files import MANIFEST, foreign_entries, publish_once, write_manifest
 
 log = logging.getLogger(__name__)
+BUILD_WAIT_S = 900.0  # [s] at most, waiting for another process's build of the same entry; then build it too
+POLL_S = 0.1
 
 
 def cache_dir() -> str:
@@ -48,6 +58,52 @@ def cached_folder(target: str, build: Callable[[str], None], what: str) -> str:
     parent = os.path.dirname(target)
     try:
         os.makedirs(parent, exist_ok=True)
+    except OSError as e:
+        raise LineFollowerError(f"cache {parent}: cannot write ({e.strerror or e}); set TWIN_CACHE_DIR to a writable folder") from None
+    with _one_builder(target, what):
+        problems = entry_problems(target)
+        if problems:  # else built by the process we waited for
+            _build(target, build, what, problems)
+    return target
+
+
+@contextlib.contextmanager
+def _one_builder(target: str, what: str) -> Iterator[None]:
+    """Held while ``target`` is built, so that another process asking for it waits instead of building it too. The
+    lock is a file beside the entry (hidden), removed by whoever held it when done (built, found built, or failed):
+    a process still waiting on it, or one that opens a new one, finds the entry when it gets the lock (or, after a
+    failed build, builds it)."""
+    path = os.path.join(os.path.dirname(target), f".{os.path.basename(target)}.lock")
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644) if fcntl else None
+    except OSError:
+        fd = None
+    if fd is None:
+        yield
+        return
+    try:
+        deadline = time.monotonic() + BUILD_WAIT_S
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    log.warning("cache: %s %s is still being built by another process after %.0f s; building it "
+                                "here too", what, target, BUILD_WAIT_S)
+                    break
+                time.sleep(POLL_S)
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            if os.stat(path).st_ino == os.fstat(fd).st_ino:  # ours, not a newer one's
+                os.unlink(path)
+        os.close(fd)
+
+
+def _build(target: str, build: Callable[[str], None], what: str, problems: list[str]) -> None:
+    parent = os.path.dirname(target)
+    try:
         if problems != ["missing"]:
             log.warning("cache: %s %s is damaged (%s); rebuilding it", what, target, ", ".join(problems[:3]))
             aside = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.", suffix=".bad", dir=parent)
@@ -70,4 +126,3 @@ def cached_folder(target: str, build: Callable[[str], None], what: str) -> str:
     problems = entry_problems(target)
     if problems:  # the winner of a race left a bad entry: not ours to fix twice
         raise LineFollowerError(f"cache {target}: {what} is damaged right after it was built ({', '.join(problems[:3])})")
-    return target

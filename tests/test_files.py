@@ -194,6 +194,29 @@ def test_a_damaged_cache_entry_is_rebuilt_with_a_warning(tmp_path, caplog):
 
 
 @pytest.mark.quick
+def test_an_entry_another_process_is_building_is_waited_for_not_built_twice(tmp_path):
+    """Two processes asking for one missing entry at once: one builds (slowly), the other waits for it and reads
+    the same entry; no lock file is left beside it."""
+    script = f"""
+import os, sys, time
+from lf_common.cache import cached_folder
+def build(tmp):
+    with open({str(tmp_path / "builds.txt")!r}, "a") as f:
+        f.write(str(os.getpid()) + "\\n")
+    time.sleep(1.5)
+    open(os.path.join(tmp, "a.bin"), "wb").write(b"built once")
+print(open(os.path.join(cached_folder({str(tmp_path / "cache" / "entry")!r}, build, "test entry"), "a.bin")).read())
+"""
+    procs = [subprocess.Popen([PY, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [e for _, e in outs]
+    assert [o.strip() for o, _ in outs] == ["built once"] * 2
+    assert len((tmp_path / "builds.txt").read_text().split()) == 1  # (without the lock: 2, both slept and built)
+    assert os.listdir(tmp_path / "cache") == ["entry"]
+
+
+@pytest.mark.quick
 def test_a_swapped_cached_mesh_or_texture_does_not_change_the_lap(tmp_path, monkeypatch):
     monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))
     from PIL import Image
