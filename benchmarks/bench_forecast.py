@@ -226,8 +226,8 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     out["first_joint"] = first_joint(twin, aligned, laps, out["forecasts"], seed)
     done_path = os.path.join(folder, RACES_DONE)
     if os.path.isfile(done_path):
-        with open(done_path) as f:
-            out["races_done_s"] = json.load(f)
+        with open(done_path) as done_file:
+            out["races_done_s"] = json.load(done_file)
     # the Monte Carlo's own error: the forecast at half of the life again, on other filter seeds (the races kept)
     half = next(f for f in out["forecasts"] if f["now"] == half_now)  # its own seed's is made already
     others = [forecast(half["now"], filter_seed=k)[0].laps_to_failure for k in range(seed + 1, seed + FILTER_SEEDS)]
