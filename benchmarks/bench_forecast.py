@@ -405,14 +405,15 @@ def main() -> None:
                       f"{len(doc['alignments'])} alignments", file=sys.stderr)
                 runs.append({"scenario": name, "seed": seed,
                              **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0], not args.quick)})
-    result = {"speed": args.speed, "seeds": args.seeds, "wall_s": round(time.monotonic() - t0, 1),
+    result = {"speed": None if args.again else args.speed, "seeds": args.seeds,
+              "wall_s": round(time.monotonic() - t0, 1),
               "all": metrics(runs), "by_scenario": {n: metrics([r for r in runs if r["scenario"] == n]) for n in names},
               "runs": runs}
     if args.json:
         print(json.dumps(result, indent=1))
         return
-    print(f"{len(runs)} robots ({', '.join(names)} × {args.seeds} seeds) at {args.speed:g}× real time, "
-          f"{result['wall_s']:.0f} s wall")
+    pace = f"kept in {args.again} (their pace as run)" if args.again else f"at {args.speed:g}× real time"
+    print(f"{len(runs)} robots ({', '.join(names)} × {args.seeds} seeds) {pace}, {result['wall_s']:.0f} s wall")
     for name, m in [("all", result["all"]), *result["by_scenario"].items()]:
         print(f"{name}: {m}")
     for r in runs:
