@@ -185,7 +185,7 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     ahead = doc.get("race_ahead") or {}
     failed = next((k for k, t in enumerate(lap_times) if t is None), None)
     done = [t for t in lap_times if t is not None]
-    out = {"first_failed_lap": failed, "forecasts": [], "race_ahead_state": ahead.get("state"), "lap_times": lap_times,
+    out = {"first_failed_lap": failed, "forecasts": [], "race_ahead_state": ahead.get("state"),
            "race_ahead_wall_s": ahead.get("wall_s"),
            # what the races must beat: the laps a forecast waits for, at real time
            "min_timed_laps_s": round(MIN_TIMED_LAPS * statistics.median(done), 1) if done else None}
@@ -219,15 +219,27 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
                                  "numbered": q is not None, "statement": f.statement, "wall_s": round(wall, 2),
                                  "joint": now in made_joint,
                                  "at_point": any(now == max(1, round(p * failed)) for p in POINTS)})
+    # the first forecast with a number, and the first of both parts at once (the laps between the forecasts above
+    # read one by one), each as a new history process makes it: the races read back from the cache folder
     first = next((f for f in out["forecasts"] if f["numbered"]), None)
-    if first is not None:  # the first forecast with a number, as a new history process makes it (races read back)
+    if first is not None:
         twin_edge.forget_races()
-        out["first_numbered"] = {"now": first["now"], "wall_s": round(forecast(first["now"])[1], 2)}
-    out["first_joint"] = first_joint(twin, aligned, laps, out["forecasts"], seed)
+        first = {"now": first["now"], "wall_s": round(forecast(first["now"])[1], 2)}
+    later = next((k for k, f in enumerate(out["forecasts"]) if f["joint"]), None)
+    joint_first = None
+    if later is not None:
+        for now in range(out["forecasts"][later - 1]["now"] + 1 if later else 1, out["forecasts"][later]["now"]):
+            twin_edge.forget_races()
+            wall = forecast(now)[1]
+            if now in made_joint:
+                joint_first = {"now": now, "wall_s": round(wall, 2)}
+                break
+        else:
+            joint_first = {k: out["forecasts"][later][k] for k in ("now", "wall_s")}
     done_path = os.path.join(folder, RACES_DONE)
     if os.path.isfile(done_path):
         with open(done_path) as done_file:
-            out["races_done_s"] = json.load(done_file)
+            out["ready"] = ready_within_a_lap(json.load(done_file), done, first, joint_first)
     # the Monte Carlo's own error: the forecast at half of the life again, on other filter seeds (the races kept)
     half = next(f for f in out["forecasts"] if f["now"] == half_now)  # its own seed's is made already
     others = [forecast(half["now"], filter_seed=k)[0].laps_to_failure for k in range(seed + 1, seed + FILTER_SEEDS)]
@@ -241,36 +253,17 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     return out
 
 
-def first_joint(twin: DigitalTwin, aligned: list, laps: list, made: list[dict], seed: int) -> dict | None:
-    """The first lap whose forecast is of both parts at once (none of them alone explains the laps: the one that
-    needs the race-ahead's rows of both): {"now", "wall_s"}, the laps between the benchmark's forecasts read one by
-    one; None if no forecast of the run was of both."""
-    joint = joint_address(tuple(sorted(SERVICE)))
-    later = next((k for k, f in enumerate(made) if f["joint"]), None)
-    if later is None:
+def ready_within_a_lap(done: list[float], lap_times: list[float], first: dict | None,
+                       joint_first: dict | None) -> dict | None:
+    """Whether a robot at real time would have had its first forecast (``first``: {"now", "wall_s"}), and its first
+    of both parts at once (``joint_first``), within one lap of asking: asked when the lap is in (``MIN_TIMED_LAPS``
+    timed laps; the first lap of both at once), at the robot's median lap time (of its finished ``lap_times``);
+    ready when the races it needs are done (``done``: when each was written, :func:`races_done`; at a pace above
+    real time live works harder beside them, so they are slower here than at real time) and it is computed (its
+    wall time here, the races read). None without the races' times."""
+    if not done or not lap_times:
         return None
-    before = made[later - 1]["now"] if later else 0
-    for now in range(before + 1, made[later]["now"]):
-        twin_edge.forget_races()  # as the first forecast of both at once would: the rows read from the cache folder
-        t0 = time.perf_counter()
-        fs = history_forecasts(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], CAUSES, now,
-                               seed=seed)
-        if joint in fs:
-            return {"now": now, "wall_s": round(time.perf_counter() - t0, 2)}
-    return {"now": made[later]["now"], "wall_s": made[later]["wall_s"]}
-
-
-def ready_within_a_lap(r: dict) -> dict | None:
-    """Whether a robot at real time would have had its first forecast, and its first of both parts at once, within
-    one lap of asking: asked when the lap is in (``MIN_TIMED_LAPS`` timed laps; the first lap of both at once), at
-    the robot's median lap time; ready when the races it needs are done (as this run's race-ahead wrote them: at
-    a pace above real time live works harder beside them, so they are slower here than at real time) and it is
-    computed (its wall time here, the races read). None without the races' times (a robot kept by an older run)."""
-    done = r.get("races_done_s")
-    times = [t for t in r.get("lap_times", []) if t is not None]
-    if not done or not times:
-        return None
-    lap_s = statistics.median(times)
+    lap_s = statistics.median(lap_times)
     out = {"lap_s": round(lap_s, 2)}
 
     def ready(asked_s, races_s, wall_s):
@@ -278,12 +271,11 @@ def ready_within_a_lap(r: dict) -> dict | None:
         return {"asked_s": round(asked_s, 1), "races_done_s": races_s, "wall_s": wall_s,
                 "late_s": round(late, 1), "within_a_lap": late <= lap_s}
 
-    one = r.get("first_numbered")  # asked at the earliest: when the laps a forecast waits for are in
-    if one is not None and len(done) >= len(SERVICE):
-        out["first"] = ready(MIN_TIMED_LAPS * lap_s, done[len(SERVICE) - 1], one["wall_s"])
-    if r.get("first_joint"):
-        j = r["first_joint"]
-        out["first_joint"] = {"now": j["now"], **ready((j["now"] + 1) * lap_s, done[-1], j["wall_s"])}
+    if first is not None and len(done) >= len(SERVICE):  # asked at the earliest: when its laps are in
+        out["first"] = ready(MIN_TIMED_LAPS * lap_s, done[len(SERVICE) - 1], first["wall_s"])
+    if joint_first is not None:
+        out["first_joint"] = {"now": joint_first["now"],
+                              **ready((joint_first["now"] + 1) * lap_s, done[-1], joint_first["wall_s"])}
     return out
 
 
@@ -325,7 +317,7 @@ def metrics(runs: list[dict]) -> dict:
     per_seed = [m is not None and abs(m - h["true_rul"]) <= ALPHA * h["true_rul"] for h in seeded
                 for m in h["medians"]]
     bounds = [r["information_limit"]["alpha_lambda_attainable"] for r in runs if r.get("information_limit")]
-    ready = [x for r in runs if (x := ready_within_a_lap(r))]
+    ready = [r["ready"] for r in runs if r.get("ready")]
     firsts = [x["first"] for x in ready if "first" in x]
     joints = [x["first_joint"] for x in ready if "first_joint" in x]
     return {"forecasts": len(points), "without_a_number": silent,
@@ -426,7 +418,7 @@ def main() -> None:
             print(f"  {r['scenario']} seed {r['seed']}, exact posterior at lap {exact['now']}: speeding up "
                   f"{exact['exact_speeding_up']:.0%} (filter {exact['filter_speeding_up']:.0%}), median "
                   f"{exact['exact_median']} laps (filter {exact['filter_median']}), true {exact['true_rul']}")
-        ready = ready_within_a_lap(r)
+        ready = r.get("ready")
         for what, x in [("first forecast", (ready or {}).get("first")),
                         ("first forecast of both at once", (ready or {}).get("first_joint"))]:
             if x:

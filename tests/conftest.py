@@ -46,8 +46,8 @@ def pytest_runtest_makereport(item, call):
 # and, when it holds none, half of what the other holds (worksteal; xdist's default left the tests queued behind a long
 # one waiting while the other process idled). The tests that took 18 s or more in a full run start first, heaviest
 # first (--durations, test and fixture time: ranked again from the run of 2026-12-02, those it did not list after
-# them as before), so that the run does not end on one of them while the other process idles. Only the order changes; a test missing
-# here runs in its place.
+# them as before), so that the run does not end on one of them while the other process idles. Only the order
+# changes; a test missing here runs in its place.
 HEAVY_FIRST = tuple(f"tests/{name}" for name in (
     "test_case2.py::test_lap_time_and_diagnosis_intervals_cover_hidden_values_across_the_documented_ranges",
     "test_case2.py::test_telemetry_intervals_cover_hidden_values_across_the_documented_ranges",

@@ -36,7 +36,8 @@ from twin.telemetry.wire import Header, Reply, gains_to_wire
 # failures)
 from reference_gains import PLAIN_HELD as PLAIN
 GAINS = [w for a, v in PLAIN.items() for w in ("--set", f"{a}={v}")]
-DRIFT = "motion.mu=0.84:0.6@16"  # plain gains fail from about lap 7 on
+WEAR = "motion.mu=0.84:0.6"  # the grip's wear (emulate --drift, without its laps)
+DRIFT = f"{WEAR}@16"  # plain gains fail from about lap 7 on
 LAPS = 12
 
 
@@ -303,7 +304,7 @@ def test_a_store_the_robot_never_answers_is_reported_not_stored_everywhere(tmp_p
     assert not (tmp_path / "eeprom.bin").exists()  # nothing was ever stored (the image is made at the first write)
 
 
-BUSY_LAPS = 9  # the busy machine's run: DRIFT's wear in 9 laps (failures from about lap 5), re-tunes at laps 6 and 9
+BUSY_LAPS = 9  # the busy machine's run: the wear in 9 laps (3 re-tunes with --act-every 3, 13–21 s each, 2026-12-02)
 
 
 def test_live_act_in_lockstep_keeps_its_robot_on_a_machine_busy_on_every_core(tmp_path):
@@ -318,7 +319,7 @@ def test_live_act_in_lockstep_keeps_its_robot_on_a_machine_busy_on_every_core(tm
 
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
     try:
-        emu = robot(tmp_path, "--laps", BUSY_LAPS, "--drift", f"motion.mu=0.84:0.6@{BUSY_LAPS}", "--lockstep",
+        emu = robot(tmp_path, "--laps", BUSY_LAPS, "--drift", f"{WEAR}@{BUSY_LAPS}", "--lockstep",
                     "--echo", "echo.txt")
         live = Pumped([*RUN, "live", "--port", link(emu), *GAINS, "--laps", str(BUSY_LAPS), "--json", "--act",
                        "--act-every", "3"], cwd=tmp_path)

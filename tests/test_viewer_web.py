@@ -10,7 +10,6 @@ and Playwright's Python package (the ``test`` extra), pointed at the system brow
 from __future__ import annotations
 
 import difflib
-import fcntl
 import os
 import re
 import shutil
@@ -20,6 +19,7 @@ import time
 
 import pytest
 
+from lf_common.cache import cached_folder
 from twin.core.digital_twin import DigitalTwin
 from twin.link.emulator import lap_records
 from twin.viz.viewer import viewer_executable
@@ -49,33 +49,36 @@ PANELS = {
 }
 
 
+KINDS = ("lap", "tune", "align", "design", "live")
+
+
 @pytest.fixture(scope="session")
 def recordings(run_folder):
     """One small recording of each kind, made by the project's own commands, once for the run: both pytest processes
-    run this module's tests (worksteal), and the second reads the first's (a lock; a making that failed leaves no
-    ``done`` mark, so the next one makes them again)."""
-    d = run_folder / "viewer-recordings"
-    oval = ["--track", "oval"]
-    commands = {
-        "lap": ["lap", *oval],
-        "tune": ["tune", *oval, "--max-iter", "1", "--param", "control.kp", "--held-out", "0", "-q"],
-        "align": ["align", *oval, "--measured-lap-time", "9"],
-        "design": ["design", *oval, "--grid", "cad.S=0.05,0.07", "--laps", "1", "--max-iter", "1", "--workers", "1",
-                   "--out-dir", str(d / "study"), "-q"],
-        "live": ["live", *oval, "--replay", str(d / "robot.log")],
-    }
-    out = {kind: str(d / f"{kind}.rrd") for kind in commands}
-    with open(run_folder / "viewer-recordings.lock", "a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if not (d / "done").is_file():
-            shutil.rmtree(d, ignore_errors=True)  # (a making that failed: ours, in the run's folder)
-            d.mkdir()
-            (d / "robot.log").write_text("".join(line for _, line in lap_records(DigitalTwin(track="oval"), 7, 4, 2)))
-            for kind, args in commands.items():
-                r = subprocess.run([*RUN, *args, "--save", out[kind]], capture_output=True, text=True, timeout=900)
-                assert r.returncode in (0, 1) and os.path.isfile(out[kind]), (kind, r.stderr)
-            (d / "done").touch()
-    return out
+    run this module's tests (worksteal), and the second waits for the first's and reads them (a cache entry in the
+    run's folder: lf_common.cache, whose lock makes them once)."""
+
+    def make(d: str) -> None:
+        log = os.path.join(d, "robot.log")
+        with open(log, "w") as f:
+            f.write("".join(line for _, line in lap_records(DigitalTwin(track="oval"), 7, 4, 2)))
+        oval = ["--track", "oval"]
+        commands = {
+            "lap": ["lap", *oval],
+            "tune": ["tune", *oval, "--max-iter", "1", "--param", "control.kp", "--held-out", "0", "-q"],
+            "align": ["align", *oval, "--measured-lap-time", "9"],
+            "design": ["design", *oval, "--grid", "cad.S=0.05,0.07", "--laps", "1", "--max-iter", "1", "--workers",
+                       "1", "--out-dir", os.path.join(d, "study"), "-q"],
+            "live": ["live", *oval, "--replay", log],
+        }
+        assert tuple(commands) == KINDS
+        for kind, args in commands.items():
+            path = os.path.join(d, f"{kind}.rrd")
+            r = subprocess.run([*RUN, *args, "--save", path], capture_output=True, text=True, timeout=900)
+            assert r.returncode in (0, 1) and os.path.isfile(path), (kind, r.stderr)
+
+    d = cached_folder(str(run_folder / "viewer-recordings"), make, "the viewer test's recordings")
+    return {kind: os.path.join(d, f"{kind}.rrd") for kind in KINDS}
 
 
 def test_every_recording_is_valid_for_rerun(recordings):
