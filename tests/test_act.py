@@ -304,7 +304,7 @@ def test_a_store_the_robot_never_answers_is_reported_not_stored_everywhere(tmp_p
     assert not (tmp_path / "eeprom.bin").exists()  # nothing was ever stored (the image is made at the first write)
 
 
-BUSY_LAPS = 9  # the busy machine's run: the wear in 9 laps (3 re-tunes with --act-every 3, 13–21 s each, 2026-12-02)
+BUSY_LAPS = 6  # the busy machine's run: the wear in 6 laps (re-tunes with --act-every 3)
 
 
 def test_live_act_in_lockstep_keeps_its_robot_on_a_machine_busy_on_every_core(tmp_path):
