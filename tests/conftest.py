@@ -84,6 +84,8 @@ HEAVY_FIRST = tuple(f"tests/{name}" for name in (
     "test_align.py::test_a_robot_in_the_steep_band_is_explained_with_the_default_range",
     "test_act.py::test_a_robot_in_lockstep_keeps_waiting_through_a_re_tune_longer_than_its_idle_timeout",
     "test_prognostics.py::test_the_stated_intervals_cover_the_truth_at_their_stated_rate",
+    "test_two_causes.py::test_both_causes_at_once_are_followed_as_the_exact_posterior_follows_them",
+    "test_prognostics.py::test_a_part_renewed_mid_life_is_followed_as_the_exact_posterior_follows_it",
     "test_board.py::test_a_design_study_races_a_3pi_program_on_each_design_as_lap_does",
     "test_sensitivity.py::test_a_default_analysis_with_fewer_samples_is_not_kept_for_diagnose_and_align",
     "test_own_robot.py::test_your_robot_in_five_minutes",

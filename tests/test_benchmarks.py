@@ -7,8 +7,8 @@
   Each command as cited runs with ``--quick`` added (its flags parsed as a user types them); a script the table
   does not cite runs bare.
 
-About 11.5 minutes of the suite's time for all of them on 2 cores (2026-12-02; each script tunes, lays laps or starts
-processes of its own)."""
+About 13 minutes of the suite's wall time for all of them, 10 of CPU, on 2 cores (2026-12-03; each script tunes,
+lays laps or starts processes of its own)."""
 
 from __future__ import annotations
 
