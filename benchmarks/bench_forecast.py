@@ -19,7 +19,8 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
     how often an unbiased forecast that good would meet α-λ;
   * the exact posterior (one part wearing straight or speeding up): at half of the life, the posterior of the
     filter's own model on the evidence the forecast gave its filter, by adaptive importance sampling
-    (tests/exact_posterior.py; without the rate's walk and renewals, which it does not model): its share of futures
+    (tests/exact_posterior.py; without the rate's walk, which it does not model, and renewals, which it models
+    one lap at a time: a sampler per lap, too slow beside every forecast; tests check it on them): its share of futures
     speeding up and its median against the filter's and the truth, so a miss shows as the evidence's or the filter's;
   * the Monte Carlo's own error: the forecast at half of the life again on ``FILTER_SEEDS`` filter seeds (the
     races kept): the spread of their medians as a fraction of the true remaining life, and α-λ on each seed;
