@@ -46,8 +46,8 @@ from scipy.special import logsumexp
 from scipy.stats import multivariate_t
 
 from tuner.prognostics import (FailureModel, FilterSettings, LapObservation, Measurement, ObservationModel, Outcome,
-                               remaining_life)
-from tuner.prognostics.monte_carlo import RemainingLife
+                               estimate, remaining_life)
+from tuner.prognostics.monte_carlo import HORIZON, RemainingLife
 from tuner.prognostics.particle_filter import SCALE_GRID, SCALE_PRIOR, SHIFT_GRID, DegradationState
 
 ROUNDS = 3  # proposal refits: the effective sample size settles by the second on the tests' lives
@@ -262,11 +262,32 @@ def exact_posterior(measurements: Sequence[Measurement], outcomes: Sequence[Outc
         pick = np.minimum((cb < rng.random(count)[:, None] * cb[:, -1:]).sum(axis=1), SHIFT_GRID - 1)
         lives["shift"].append(grid[pick] + step * (rng.random(count) - 0.5))
     v, r, a, shift = (np.concatenate(lives[x]) for x in ("v", "r", "a", "shift"))
-    if d == 1:
+    value = tuple(float(x) for j in range(d) for x in np.quantile(v[:, j], (0.05, 0.5, 0.95)))
+    if d == 1:  # one cause: the filter's state holds (particles,) arrays
         v, r, a = v[:, 0], r[:, 0], a[:, 0]
-        state = DegradationState(now, v, r, np.ones(len(v)), shift, [], a, settings.one_way)
-    else:
-        state = DegradationState(now, v, r, np.ones(len(v)), shift, [], a, settings.signs.copy())
+    state = DegradationState(now, v, r, np.ones(len(v)), shift, [], a,
+                             settings.one_way if d == 1 else settings.signs.copy())
     life = remaining_life(state, failure, 0.0, seed=seed, horizon=horizon)
-    value = tuple(float(x) for j in range(d) for x in np.quantile(v if d == 1 else v[:, j], (0.05, 0.5, 0.95)))
     return ExactPosterior(speeding_up, life, (effective[False][1], effective[True][1]), renewal, value, shapes)
+
+
+def filter_on_seeds(measurements: Sequence[Measurement], outcomes: Sequence[Outcome], now: int,
+                    settings: FilterSettings, failure, observations: Sequence[LapObservation] = (), model=None,
+                    horizon: int = HORIZON, seeds: int = 3) -> list[tuple[DegradationState, RemainingLife]]:
+    """The filter on the evidence up to lap ``now``, on filter seeds 0 … ``seeds`` − 1: [(its state, the remaining
+    life from it, no walk)], to hold against the exact posterior."""
+    runs = []
+    for seed in range(seeds):
+        state = estimate([m for m in measurements if m.lap <= now], [o for o in outcomes if o.lap <= now], now,
+                         settings, failure, seed=seed, observations=[o for o in observations if o.lap <= now],
+                         model=model)
+        runs.append((state, remaining_life(state, failure, 0.0, seed=seed, horizon=horizon)))
+    return runs
+
+
+def assert_life_near(exact: ExactPosterior, lives: Sequence[RemainingLife], now: int) -> None:
+    """The filter's 10 %, 50 % and 90 % remaining-life quantiles, the seeds' mean, within 10 % and a lap of the
+    exact posterior's."""
+    quantiles = [[life.quantile(q) for q in (0.1, 0.5, 0.9)] for life in lives]
+    for q, filtered in zip((0.1, 0.5, 0.9), np.mean(quantiles, axis=0)):
+        assert abs(filtered - exact.life.quantile(q)) <= 0.1 * exact.life.quantile(q) + 1, (now, q, quantiles)

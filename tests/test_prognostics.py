@@ -16,7 +16,7 @@ from tuner.prognostics import (FailureModel, FilterSettings, LapObservation, Mea
                                shape_sentence)
 from tuner.prognostics.particle_filter import SCALE_PRIOR, DegradationState
 
-from exact_posterior import exact_posterior
+from exact_posterior import assert_life_near, exact_posterior, filter_on_seeds
 
 
 @pytest.mark.quick
@@ -219,23 +219,6 @@ def test_the_same_evidence_on_other_filter_seeds_gives_the_same_remaining_life()
         assert max(medians) - min(medians) <= 0.25 * float(np.median(medians)), (life_seed, medians)
 
 
-def _on_three_seeds(ms, outs, now: int, st: FilterSettings, fm: FailureModel) -> list:
-    """The filter on the evidence up to lap ``now``, seeds 0-2: [(its state, the remaining life from it)]."""
-    runs = []
-    for seed in range(3):
-        state = estimate([m for m in ms if m.lap <= now], [o for o in outs if o.lap <= now], now, st, fm, seed=seed)
-        runs.append((state, remaining_life(state, fm, 0.0, seed=seed)))
-    return runs
-
-
-def _near_the_exact_life(exact, lives, now: int) -> None:
-    """The filter's 10 %, 50 % and 90 % remaining-life quantiles, the seeds' mean, within 10 % and a lap of the
-    exact posterior's."""
-    quantiles = [[life.quantile(q) for q in (0.1, 0.5, 0.9)] for life in lives]
-    for q, filtered in zip((0.1, 0.5, 0.9), np.mean(quantiles, axis=0)):
-        assert abs(filtered - exact.life.quantile(q)) <= 0.1 * exact.life.quantile(q) + 1, (now, q, quantiles)
-
-
 def test_straight_against_speeding_up_wear_is_weighed_as_the_exact_posterior_weighs_it():
     """A part wearing ever faster (μ 0.95, −0.002 per lap, −1e-4 per lap²), aligned every 3 laps (σ 0.004, its
     noise 1.5 times that), every lap finished; the gains fail below 0.75 (width 0.01), first at lap 47. At laps 9, 15
@@ -257,10 +240,10 @@ def test_straight_against_speeding_up_wear_is_weighed_as_the_exact_posterior_wei
     for now in (9, 15, 27):
         exact = exact_posterior(ms, outs, now, st, fm, seed=1)
         assert min(exact.effective) > 5000  # the importance sampler found the posterior
-        runs = _on_three_seeds(ms, outs, now, st, fm)
+        runs = filter_on_seeds(ms, outs, now, st, fm)
         shares = [float(np.mean(state.speeding_up)) for state, _ in runs]
         assert abs(np.mean(shares) - exact.speeding_up) < 0.08, (now, shares, exact.speeding_up)
-        _near_the_exact_life(exact, [life for _, life in runs], now)
+        assert_life_near(exact, [life for _, life in runs], now)
 
 
 def test_a_part_renewed_mid_life_is_followed_as_the_exact_posterior_follows_it():
@@ -288,8 +271,8 @@ def test_a_part_renewed_mid_life_is_followed_as_the_exact_posterior_follows_it()
         exact = exact_posterior(ms, outs, now, st, fm, seed=1)
         assert exact.renewed > 0.99 and sum(exact.renewal.get(k, 0.0) for k in (13, 14, 15)) > 0.99, exact.renewal
         assert min(exact.effective) > 500  # the importance sampler found the posterior
-        runs = _on_three_seeds(ms, outs, now, st, fm)
-        _near_the_exact_life(exact, [life for _, life in runs], now)
+        runs = filter_on_seeds(ms, outs, now, st, fm)
+        assert_life_near(exact, [life for _, life in runs], now)
         medians = [state.quantiles()[1] for state, _ in runs]
         low, median, high = exact.value
         assert abs(np.mean(medians) - median) <= 0.25 * (high - low), (now, medians, exact.value)

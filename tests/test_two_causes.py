@@ -209,7 +209,7 @@ def test_both_causes_at_once_are_followed_as_the_exact_posterior_follows_them():
     same but 22 for 21); the filter 38.3, 69.3, 95 and 22, 26.3, 33.3; speeding up 0.39 and 0.93 exact, 0.38 and
     0.94 the filter (its seeds 0.27-0.54 at lap 15). A joint filter whose parts never speed up fails it at lap 15
     (its 10 % quantile 62.7 laps against 38; measured by patching the filter)."""
-    from exact_posterior import exact_posterior
+    from exact_posterior import assert_life_near, exact_posterior, filter_on_seeds
 
     plane = _plane()
     failure = PlaneFailure.of([(float(w), FailureModel(0.6 + 0.02 * (6 - w) ** 2, 0.01, -1.0)) for w in ROWS], -1.0)
@@ -229,15 +229,10 @@ def test_both_causes_at_once_are_followed_as_the_exact_posterior_follows_them():
         exact = exact_posterior((), outs, now, st, failure, draws=10_000, seed=1, observations=obs, model=plane,
                                 horizon=300)
         assert min(exact.effective) > 2000  # the importance sampler found the posterior
-        quantiles, medians, shares = [], [], []
-        for seed in range(3):
-            state = estimate((), outs[:now + 1], now, st, failure, seed=seed, observations=obs[:now + 1], model=plane)
-            life = remaining_life(state, failure, 0.0, seed=seed, horizon=300)
-            quantiles.append([life.quantile(q) for q in (0.1, 0.5, 0.9)])
-            medians.append([state.quantiles(dim=j)[1] for j in range(2)])
-            shares.append(float(np.mean(state.speeding_up)))
-        for q, filtered in zip((0.1, 0.5, 0.9), np.mean(quantiles, axis=0)):
-            assert abs(filtered - exact.life.quantile(q)) <= 0.1 * exact.life.quantile(q) + 1, (now, q, quantiles)
+        runs = filter_on_seeds((), outs, now, st, failure, observations=obs, model=plane, horizon=300)
+        assert_life_near(exact, [life for _, life in runs], now)
+        medians = [[state.quantiles(dim=j)[1] for j in range(2)] for state, _ in runs]
+        shares = [float(np.mean(state.speeding_up)) for state, _ in runs]
         for j, median in enumerate(np.mean(medians, axis=0)):
             low, mid, high = exact.value[3 * j:3 * j + 3]
             assert abs(median - mid) <= 0.25 * (high - low), (now, j, medians, exact.value)
