@@ -60,6 +60,26 @@ def test_two_hidden_parameters_are_recovered_from_the_traces(oval, recorded):
     assert oval.space.get("motor.R_M") != 10.0  # the twin itself is left as it was
 
 
+def test_a_point_asked_again_is_not_raced_again_and_the_fit_is_the_same_bit_for_bit(oval, recorded, monkeypatch):
+    """The fit asks its residual again for points it has raced (its solution, the refits' start, the scan's point at
+    it); answered from what it raced, the fit is the one that races every point asked, to the bit, in fewer laps.
+    The reference races every point of every call (the fit as it was before it kept them)."""
+    from tuner.align import trace
+
+    path, _, _ = recorded
+    tel = read_telemetry(path)
+    kept = align_telemetry(oval, tel, ["motor.R_M"], max_iter=3)
+
+    def racing_every_point(self, X, seeds=None):
+        return self.residuals_of(self.laps_for(X.reshape(len(self.addresses), -1), seeds))
+
+    monkeypatch.setattr(trace._Residual, "__call__", racing_every_point)
+    every = align_telemetry(oval, tel, ["motor.R_M"], max_iter=3)
+    assert kept.parameters == every.parameters and kept.rms_wheel_radps == every.rms_wheel_radps
+    assert kept.correlation == every.correlation and kept.iterations == every.iterations
+    assert kept.laps < every.laps, (kept.laps, every.laps)
+
+
 @pytest.mark.parametrize("body, needle", [
     ('{"type":"header","format":"lf-telemetry","version":1,"dt_s":0.005,"sensors":8}\n{"type":"sample","t":0}\n',
      ":2: field 'pos' must be a finite number"),

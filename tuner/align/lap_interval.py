@@ -39,14 +39,16 @@ def solution_interval(twin: DigitalTwin, address: str, value: float, m: float, b
     :func:`tuner.align.calibration.inverse_interval`. The span starts at ``START_SPAN`` and widens
     (``INTERVAL_ROUNDS`` at most) until the interval lies inside the values the slope was taken over; a failed lap
     there, or an interval still wider, gives None (not pinned by a straight line)."""
-    span, laps = START_SPAN, 0
+    span, laps, centre = START_SPAN, 0, None
     for _ in range(INTERVAL_ROUNDS):
         lo_x, hi_x = max(value * (1 - span), bounds[0]), min(value * (1 + span), bounds[1])
         if not lo_x < value < hi_x:
             return None, laps
-        centre = laps_on_seeds(twin, address, [value], seed, nthread, limits, INTERVAL_SEEDS)
+        if centre is None:  # the same laps each round (a lap is deterministic): raced once
+            centre = laps_on_seeds(twin, address, [value], seed, nthread, limits, INTERVAL_SEEDS)
+            laps += len(centre)
         sides = laps_on_seeds(twin, address, [lo_x, hi_x], seed, nthread, limits, SLOPE_SEEDS)
-        laps += len(centre) + len(sides)
+        laps += len(sides)
         if not all(r.completed for r in centre + sides):
             return None, laps  # a limit lies within the span: no straight line through it
         fit = inverse_interval(value, [r.lap_time_s for r in centre], lo_x,
