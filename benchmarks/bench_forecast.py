@@ -26,15 +26,16 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
     races kept): the spread of their medians as a fraction of the true remaining life, and α-λ on each seed;
   * the forecast's wall time (a forecast must be ready within one lap at real time on 2 cores): each robot's
     ``live --race-ahead`` races its gains on the twin in the background for each cause (each robot with a cache
-    folder of its own): how long that took, against the laps a forecast waits for (``MIN_TIMED_LAPS``) at real
-    time; the first forecast, on those races (a robot kept by an older ``--keep`` has none: its first forecast
+    folder of its own, or with ``--share-cache`` one for all, as robots on one machine share the user's: robots on
+    the same gains then race them once): how long that took, against the laps a forecast waits for
+    (``MIN_TIMED_LAPS``) at real time; the first forecast, on those races (a robot kept by an older ``--keep`` has none: its first forecast
     races the twin); and once more after forgetting them, as a new ``history`` process does. At real time: is the
     first forecast, and the first of both parts at once (the first lap, read lap by lap, where no part alone
     explains the laps: it needs the race-ahead's rows of both), ready within a lap of being asked, given when this
     run's races were done (each entry's time in the robot's cache folder) and the forecast's own wall time?
 
   python benchmarks/bench_forecast.py [--seeds 2] [--speed 10] [--scenario NAME ...] [--keep DIR | --again DIR]
-                                      [--quick] [--json]
+                                      [--share-cache] [--parallel 2] [--quick] [--json]
 
 ``--quick``: one robot of the linear scenario compressed to 24 laps, at 20× real time, on the plain gains the tests
 hold fixed (``QUICK_GAINS``), its races in the cache folder of the run that started it (the tests' run races those
@@ -91,10 +92,11 @@ SEED, SEED_STEP = 7, 1000  # the robots' emulate --seed: 7, 1007, … (each robo
 
 
 def run_robot(folder: str, drifts: list[str], laps: int, seed: int, speed: float,
-              own_cache: bool = True) -> tuple[dict, list]:
-    """One robot watched by plain live: (live's JSON, the robot's own laps (completed, lap time)). ``own_cache``:
-    its races in a cache folder of its own (so their wall time is measured), else in the caller's (--quick)."""
-    env = {**os.environ, **({"TWIN_CACHE_DIR": os.path.join(folder, "cache")} if own_cache else {})}
+              cache: str | None) -> tuple[dict, list]:
+    """One robot watched by plain live: (live's JSON, the robot's own laps (completed, lap time)). ``cache``: the
+    cache folder its races go to, whose entries' times are then measured (its own, or one the robots share), or
+    None: the caller's (--quick)."""
+    env = {**os.environ, **({"TWIN_CACHE_DIR": cache} if cache else {})}
     emu = subprocess.Popen([*RUN, "emulate", "--tcp", "0", "--speed", str(speed), "--laps", str(laps), "--seed",
                             str(seed), *[w for d in drifts for w in ("--drift", d)], "--echo", "echo.txt", "--json",
                             *GAINS], cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
@@ -107,12 +109,13 @@ def run_robot(folder: str, drifts: list[str], laps: int, seed: int, speed: float
         raise RuntimeError(f"live failed in {folder}: {live.stderr[-2000:]}")
     with open(os.path.join(folder, "live.json"), "w") as f:
         f.write(live.stdout)
-    if own_cache:
+    if cache:
         with open(os.path.join(folder, RACES_DONE), "w") as f:
-            json.dump(races_done(os.path.join(folder, "cache", twin_edge.RACES), started), f)
+            json.dump(races_done(os.path.join(cache, EDGES), started), f)
     return json.loads(live.stdout), robot_laps_of(folder)
 
 
+EDGES = twin_edge.RACES  # the races' folder in a cache folder (read once: forecasts_of points twin_edge at a robot's)
 RACES_DONE = "races_done.json"  # a robot's folder: when each race live ran ahead was written, [s] after live started
 
 
@@ -176,13 +179,13 @@ def exact_check(drifts: list[str], twin: DigitalTwin, forecast, record: dict, no
 
 
 def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int,
-                 drifts: list[str] = (), own_cache: bool = True) -> dict:
+                 drifts: list[str] = (), cache: str | None = None) -> dict:
     """The forecasts at POINTS of the life, and every EVERY laps (for the prognostic horizon), from what the
     history would hold: live's alignments and the robot's laps (lap time, the line's mean offset)."""
     lap_times = [t for t, _ in robot_laps]
     twin_edge.forget_races()  # each robot's first forecast reads the races its live ran ahead, in its cache folder
-    if own_cache:  # (as run_robot ran it)
-        twin_edge.RACES = os.path.join(folder, "cache", "twin-edges")
+    if cache:  # (as run_robot ran it)
+        twin_edge.RACES = os.path.join(cache, EDGES)
     ahead = doc.get("race_ahead") or {}
     failed = next((k for k, t in enumerate(lap_times) if t is None), None)
     done = [t for t in lap_times if t is not None]
@@ -356,6 +359,9 @@ def main() -> None:
     ap.add_argument("--keep", metavar="DIR", help="run in this new folder and keep it")
     ap.add_argument("--again", metavar="DIR", help="forecast again from the robots a --keep run left in DIR (their "
                     "live.json and echo.txt), without running them")
+    ap.add_argument("--share-cache", action="store_true", help="the robots' races in one cache folder, as robots on "
+                    "one machine share the user's (the same twin and gains: raced once for all); default: a folder "
+                    "per robot, so each robot's races are timed as if its gains were its own")
     ap.add_argument("--quick", action="store_true", help="one robot, linear wear in 24 laps, 20× real time (for CI)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -381,6 +387,9 @@ def main() -> None:
     with (contextlib.nullcontext(kept) if kept else tempfile.TemporaryDirectory(prefix="bench-fc-")) as tmp:
         from concurrent.futures import ThreadPoolExecutor
 
+        def cache_of(folder: str) -> str | None:  # (--quick: the caller's)
+            return None if args.quick else os.path.join(tmp if args.share_cache else folder, "cache")
+
         def one(job):
             name, seed = job
             folder = os.path.join(tmp, f"{name.replace(' ', '_')}_{seed}")
@@ -389,7 +398,7 @@ def main() -> None:
                     return job, folder, (json.load(f), robot_laps_of(folder))
             os.makedirs(folder)
             drifts, laps = SCENARIOS[name]
-            return job, folder, run_robot(folder, drifts, laps, seed, args.speed, not args.quick)
+            return job, folder, run_robot(folder, drifts, laps, seed, args.speed, cache_of(folder))
 
         with ThreadPoolExecutor(args.parallel) as pool:
             for (name, seed), folder, (doc, robot_laps) in pool.map(one, jobs):
@@ -397,8 +406,8 @@ def main() -> None:
                       f"{next((k for k, (t, _) in enumerate(robot_laps) if t is None), None)}, "
                       f"{len(doc['alignments'])} alignments", file=sys.stderr)
                 runs.append({"scenario": name, "seed": seed,
-                             **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0], not args.quick)})
-    result = {"speed": None if args.again else args.speed, "seeds": args.seeds,
+                             **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0], cache_of(folder))})
+    result = {"speed": None if args.again else args.speed, "seeds": args.seeds, "share_cache": args.share_cache,
               "wall_s": round(time.monotonic() - t0, 1),
               "all": metrics(runs), "by_scenario": {n: metrics([r for r in runs if r["scenario"] == n]) for n in names},
               "runs": runs}
@@ -406,7 +415,9 @@ def main() -> None:
         print(json.dumps(result, indent=1))
         return
     pace = f"kept in {args.again} (their pace as run)" if args.again else f"at {args.speed:g}× real time"
-    print(f"{len(runs)} robots ({', '.join(names)} × {args.seeds} seeds) {pace}, {result['wall_s']:.0f} s wall")
+    caches = "one cache folder for all" if args.share_cache else "a cache folder each"
+    print(f"{len(runs)} robots ({', '.join(names)} × {args.seeds} seeds) {pace}, {caches}, "
+          f"{result['wall_s']:.0f} s wall")
     for name, m in [("all", result["all"]), *result["by_scenario"].items()]:
         print(f"{name}: {m}")
     for r in runs:

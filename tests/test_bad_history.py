@@ -36,6 +36,8 @@ ROWS = [
     ("lap --db sqlite:///{dir}/view.sqlite", 2, ["view.sqlite", "holds view v_mine", "left as it is"], []),
     ("live --port socket://127.0.0.1:9 --db sqlite:///{dir}/version.sqlite", 2,
      ["version.sqlite", "holds user_version 7", "left as it is"], []),
+    # a wait for the races that is no time span
+    ("history --db sqlite:///{dir}/h.sqlite --race-wait -1", 2, ["--race-wait", "'-1' is outside [0, 900]"], []),
     # a log live is still writing (it is locked): a rebuild would miss its last laps
     ("history --rebuild --log {dir}/held.log --db sqlite:///{dir}/r3.sqlite", 2,
      ["{dir}/held.log", "live is still writing it"], []),

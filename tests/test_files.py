@@ -217,6 +217,29 @@ print(open(os.path.join(cached_folder({str(tmp_path / "cache" / "entry")!r}, bui
 
 
 @pytest.mark.quick
+def test_an_entry_still_being_built_elsewhere_is_not_waited_for_past_the_wait_asked(tmp_path):
+    """A caller that must answer soon (history --race-wait) hears StillBuilding once its wait is over, builds
+    nothing and leaves the builder's lock alone; the builder done, the entry is built (here: by the caller)."""
+    import fcntl
+    import time
+
+    from lf_common.cache import StillBuilding, lock_path
+
+    entry = str(tmp_path / "entry")
+    builds = []
+    holder = open(lock_path(entry), "w")  # another open file: flock conflicts as another process's would
+    fcntl.flock(holder, fcntl.LOCK_EX)
+    t0 = time.monotonic()
+    with pytest.raises(StillBuilding, match="test entry .* still being built by another process after 0.3 s"):
+        cached_folder(entry, builds.append, "test entry", wait_s=0.3)
+    assert 0.3 <= time.monotonic() - t0 < 3.0
+    assert builds == [] and os.listdir(tmp_path) == [os.path.basename(lock_path(entry))]  # the lock is the holder's
+    holder.close()  # the other process done (here without an entry: the caller builds it)
+    cached_folder(entry, lambda tmp: open(os.path.join(tmp, "a.bin"), "wb").write(b"x"), "test entry", wait_s=0.3)
+    assert sorted(os.listdir(tmp_path)) == ["entry"]
+
+
+@pytest.mark.quick
 def test_a_swapped_cached_mesh_or_texture_does_not_change_the_lap(tmp_path, monkeypatch):
     monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))
     from PIL import Image

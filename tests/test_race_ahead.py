@@ -83,3 +83,53 @@ def test_only_a_value_measured_less_worn_than_the_twin_moves_the_race(tmp_path, 
     assert other.value_now is not None and other.band != first.band
     with pytest.raises(pytest.fail.Exception, match="raced again"):
         forecast_failure(twin, PLAIN, aligned(first.raced[0] + 0.05), seen, "motion.mu", now_lap=LAPS - 1)
+
+
+@pytest.mark.quick
+def test_a_forecast_whose_race_another_process_runs_says_so_within_its_wait(tmp_path, monkeypatch):
+    """history --race-wait: while another process (live's race-ahead) holds the race a forecast reads, the forecast
+    answers within its wait with no number and says the race is still to come; the races after it (which that
+    process runs next) are not raced here either; the rows of both at once say how many of theirs are done."""
+    import fcntl
+    import time
+
+    from lf_common.cache import lock_path
+    from tuner.history.forecast import LAP_TIMEOUT_S, STILL_RACING, race_range, service_direction
+    from tuner.history.report import soonest
+    from tuner.history.two_causes import RowsRacing, forecasts_of, race_plane
+    from twin.core.lap import LapLimits
+
+    monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path))
+    te.forget_races()
+    twin = DigitalTwin(track="oval")
+    laps = run_laps(twin, [PLAIN] * LAPS, seed=list(range(100, 100 + LAPS)), keep_traces=False)
+    seen = [{"n": k, "completed": r.completed, "gains": PLAIN, "lap_time_s": r.lap_time_s} for k, r in enumerate(laps)]
+
+    def hold(address):  # the race of a part that wears, as forecast_failure asks for it, held as its builder would
+        direction = service_direction(twin, address, [])
+        start, end = race_range(twin, address, [], direction)
+        folder = te.race_folder(te.race_record(twin, PLAIN, address, start, end, direction, 0,
+                                               LapLimits(timeout_s=LAP_TIMEOUT_S), te.SEEDS))
+        os.makedirs(os.path.dirname(folder), exist_ok=True)
+        lock = open(lock_path(folder), "w")
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return lock
+
+    first, second = sorted(SERVICE)  # the order forecasts_of asks in
+    held = [hold(first)]
+    monkeypatch.setattr(te, "_twin_edge", lambda *a: pytest.fail("raced what another process is to race"))
+    t0 = time.monotonic()
+    out = forecasts_of(twin, PLAIN, [], seen, [first, second], LAPS - 1, race_wait_s=0.2)
+    assert time.monotonic() - t0 < 10.0
+    assert sorted(out) == [first, second]
+    for address, f in out.items():
+        assert f.laps_to_failure is None and f.interval is None and f.note == STILL_RACING, f
+        assert f"race of {address}" in f.statement and "another process" in f.statement
+    assert soonest(out.values()).note == STILL_RACING
+    # both at once: its first race (the second part's alone) held too
+    held.append(hold(second))
+    with pytest.raises(RowsRacing) as racing:
+        race_plane(twin, PLAIN, (first, second), 0, LapLimits(timeout_s=LAP_TIMEOUT_S), wait_s=0.2)
+    assert (racing.value.done, racing.value.total) == (0, ROWS + 1)
+    # nothing raced, nothing half written: only the holders' locks are there
+    assert sorted(races(tmp_path)) == sorted(os.path.basename(h.name) for h in held)

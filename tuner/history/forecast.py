@@ -32,6 +32,7 @@ import math
 
 import numpy as np
 
+from lf_common.cache import StillBuilding
 from tuner.history.trend import measured
 from tuner.prognostics import (FailureModel, FilterSettings, LapObservation, Measurement, ObservationModel, Outcome,
                                estimate, life_sentence, measurement_sigma, remaining_life, retune_advice,
@@ -46,6 +47,7 @@ from twin.core.lap import LapLimits
 
 LADDER = 12  # values raced along the trend, one batch
 REFINE = 6  # then between the last that finished and the first that failed, one more batch
+STILL_RACING = "still racing"  # a forecast's note when the races it reads are still running in another process
 LAP_TIMEOUT_S = 30.0  # the longest lap the twin races for a forecast [s]
 MIN_MEASURED_LAPS = 2  # alignments at different laps, at least, for a forecast …
 MIN_TIMED_LAPS = 8  # … or this many finished laps on the gains in force, read through the twin
@@ -243,13 +245,18 @@ def observations_of(laps: list[dict], gains: dict, now_lap: int, offset: bool) -
 def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], address: str,
                      now_lap: int, seeds: int = EDGE_SEEDS, seed: int = 0, lap_timeout_s: float = LAP_TIMEOUT_S,
                      settings: FilterSettings | None = None, filter_seed: int | None = None,
-                     record: dict | None = None) -> Forecast:
+                     record: dict | None = None, race_wait_s: float | None = None,
+                     race_here: bool = True) -> Forecast:
     """When the ``gains`` in force first fail, from the robot's ``alignments`` of ``address`` (each with
     ``first_lap``, ``lap``, ``value``, ``interval``) and its ``laps`` (``n``, ``completed``, ``gains``,
     ``lap_time_s``, ``xte_mean_m``) up to ``now_lap``. Deterministic in its inputs and ``seed``, whatever their
     order. ``filter_seed`` (default ``seed``) seeds the particle filter and the Monte Carlo alone, the races kept:
     another filter seed on the same evidence measures the estimate's own Monte Carlo error. ``record``: a dict
-    that gets the filter's inputs under ``address`` (:class:`FilterInputs`) when the filter runs."""
+    that gets the filter's inputs under ``address`` (:class:`FilterInputs`) when the filter runs. ``race_wait_s``:
+    how long to wait for the twin's race if another process is running it (``live``'s race-ahead; None: until it
+    is done); past that, no number, and a statement that says the race is still running (the one answer that
+    depends on timing, not on the inputs alone); ``race_here`` False: nor is a race raced here that no process is
+    running yet (another process's races are under way, this one is to come from them)."""
     filter_seed = seed if filter_seed is None else filter_seed
     p = twin.space.parameter(address)
     ms = [m for m in measurements_of(alignments, address) if m.lap <= now_lap]
@@ -271,8 +278,14 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
         first = estimate(ms, (), now_lap, settings or FilterSettings(span=float(p.upper - p.lower)), None, filter_seed)
         direction = -1.0 if first.rate_quantiles((0.5,))[0] <= 0 else 1.0
     start, end = race_range(twin, address, known, direction)
-    edge = twin_edge(twin, gains, address, start, end, direction, seed, LapLimits(timeout_s=lap_timeout_s),
-                     seeds=seeds)
+    try:
+        edge = twin_edge(twin, gains, address, start, end, direction, seed, LapLimits(timeout_s=lap_timeout_s),
+                         seeds=seeds, wait_s=race_wait_s, race_here=race_here)
+    except StillBuilding:
+        return dataclasses.replace(no_number(
+            address, now_lap, f"the twin's race of {address} on the gains in force is still to come from another "
+            "process's races (live's race-ahead, or another history): no number yet, ask again",
+            evidence, STILL_RACING), raced=(start, end))
     failure, failing, raced = edge.failure, edge.failing, edge.laps
     if failure is None:
         return dataclasses.replace(

@@ -14,7 +14,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from tuner.history import schema as s
-from tuner.history.forecast import MISFIT_LIMIT, SERVICE
+from tuner.history.forecast import MISFIT_LIMIT, SERVICE, STILL_RACING
 from tuner.history.twin_edge import FEATURES
 from tuner.history.store import History
 from tuner.history.trend import trend_of
@@ -141,15 +141,17 @@ def causes_note(forecasts: dict, aligned: list[dict]) -> str:
 
 def soonest(forecasts):
     """The forecast of the parameter that fails the gains first (by median; one with a number before one
-    without)."""
-    ranked = sorted(forecasts, key=lambda f: (f.laps_to_failure is None, f.laps_to_failure or 0.0, f.address))
+    without, and among those without, one whose races are still running first: it says when to ask again)."""
+    ranked = sorted(forecasts, key=lambda f: (f.laps_to_failure is None, f.laps_to_failure or 0.0,
+                                              f.note != STILL_RACING, f.address))
     return ranked[0] if ranked else None
 
 
 def report(history: History, twin: DigitalTwin | None, name: str | None = None, seed: int = 0,
-           progress: Callable[[str], None] | None = None) -> list[dict]:
+           progress: Callable[[str], None] | None = None, race_wait_s: float | None = None) -> list[dict]:
     """Per robot: laps, changes, trends and (with a ``twin``) the forecast and advice; ``progress`` hears of each
-    robot's forecast (a few seconds each) before it begins."""
+    robot's forecast (a few seconds each) before it begins; ``race_wait_s``: how long a forecast waits for a race
+    another process is running (:func:`tuner.history.two_causes.forecasts_of`)."""
     out = []
     for robot in robots(history, name):
         with history.begin() as c:
@@ -175,7 +177,8 @@ def report(history: History, twin: DigitalTwin | None, name: str | None = None, 
                 progress(f"forecasting robot {robot['name']}: filtering its evidence, racing its gains on the twin")
             # every aligned parameter, and every part that wears (read from the laps themselves)
             causes = sorted(set(entry["trends"]) | set(SERVICE))
-            entry["forecasts"] = forecasts_of(twin, gains, aligned, laps, causes, laps[-1]["n"], seed=seed)
+            entry["forecasts"] = forecasts_of(twin, gains, aligned, laps, causes, laps[-1]["n"], seed=seed,
+                                              race_wait_s=race_wait_s)
             f = soonest(entry["forecasts"].values())
             entry["causes_tracked"] = causes
             entry["causes_note"] = causes_note(entry["forecasts"], aligned)

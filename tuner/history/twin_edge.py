@@ -218,6 +218,16 @@ def race_record(twin: DigitalTwin, gains: dict, address: str, start: float, end:
             "ladder": [LADDER, REFINE, DENSE], "code": code_digest()}
 
 
+def race_key(record: dict) -> str:
+    """A race's key: what decides it (:func:`race_record`), hashed."""
+    return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()[:32]
+
+
+def race_folder(record: dict) -> str:
+    """Where the race of ``record`` is kept: its entry in the cache folder."""
+    return os.path.join(cache_dir(), RACES, race_key(record))
+
+
 def _edge_doc(edge: TwinEdge) -> dict:
     doc = dataclasses.asdict(dataclasses.replace(edge, observation=None))
     o = edge.observation
@@ -235,13 +245,17 @@ def _edge_of(doc: dict) -> TwinEdge:
 
 
 def twin_edge(twin: DigitalTwin, gains: dict, address: str, start: float, end: float, direction: float, seed: int,
-              limits: LapLimits, seeds: int = SEEDS) -> TwinEdge:
+              limits: LapLimits, seeds: int = SEEDS, wait_s: float | None = None,
+              race_here: bool = True) -> TwinEdge:
     """Race ``gains`` from ``address`` = ``start`` towards ``end`` (where the wear goes: ``direction``). A race is
     deterministic: the same race asked again (the same robot, values, track, gains, ladder and code) is answered
     from the last few of this process, or from the cache folder, where each race is kept as a verified entry (JSON
-    floats read back bit for bit): a forecast after the first, in any process, does not race the twin again."""
+    floats read back bit for bit): a forecast after the first, in any process, does not race the twin again.
+    ``wait_s``: how long to wait for another process racing it (``live``'s race-ahead; None: as the cache does,
+    :func:`lf_common.cache.cached_folder`), else :class:`lf_common.cache.StillBuilding`; ``race_here`` False: a race
+    not in the cache is not raced here either (it is to come from that process): StillBuilding too."""
     record = race_record(twin, gains, address, start, end, direction, seed, limits, seeds)
-    key = hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()[:32]
+    key = race_key(record)
     if key not in _RECENT:
         if len(_RECENT) >= RECENT:
             del _RECENT[next(iter(_RECENT))]
@@ -250,7 +264,7 @@ def twin_edge(twin: DigitalTwin, gains: dict, address: str, start: float, end: f
             edge = _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds)
             write_json(os.path.join(folder, "race.json"), {"record": record, "edge": _edge_doc(edge)}, "the race")
 
-        folder = cached_folder(os.path.join(cache_dir(), RACES, key), race_into, f"the twin's race of {address}")
+        folder = cached_folder(race_folder(record), race_into, f"the twin's race of {address}", wait_s, race_here)
         doc = read_json(os.path.join(folder, "race.json"), 1 << 24, "the race")
         if doc["record"] != json.loads(json.dumps(json_safe(record))):  # a hand-made entry (or a collision)
             raise LineFollowerError(f"cache {folder}: holds another race; delete it")

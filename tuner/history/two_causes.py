@@ -18,12 +18,14 @@ both together.
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import numpy as np
 
-from tuner.history.forecast import (EDGE_PRIOR, LAP_TIMEOUT_S, MIN_TIMED_LAPS, MISFIT_LIMIT, SERVICE, Forecast,
-                                    carries_offsets, forecast_failure, no_number, observations_of, outcomes_of,
-                                    race_range, service_direction)
+from lf_common.cache import StillBuilding
+from tuner.history.forecast import (EDGE_PRIOR, LAP_TIMEOUT_S, MIN_TIMED_LAPS, MISFIT_LIMIT, SERVICE, STILL_RACING,
+                                    Forecast, carries_offsets, forecast_failure, no_number, observations_of,
+                                    outcomes_of, race_range, service_direction)
 from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
 from tuner.history.twin_edge import twin_edge
 from tuner.prognostics import FilterSettings, estimate, life_sentence, remaining_life, retune_advice, service_advice
@@ -42,6 +44,12 @@ ROW_CROWDING = 2.0  # row k at 1 − (1 − k/(ROWS − 1))² of the way: grip's
 TELLS_APART = 0.9  # above this |correlation| of the two values over the particles the laps do not tell them apart
 
 
+def time_left(wait_s: float | None):
+    """A function giving what is left of ``wait_s`` seconds from now [s], never below 0 (None: None)."""
+    end = None if wait_s is None else time.monotonic() + wait_s
+    return lambda: None if end is None else max(0.0, end - time.monotonic())
+
+
 def joint_address(causes: tuple[str, str]) -> str:
     """The key of the forecast of both causes at once (``history --json``'s ``forecasts``)."""
     return "+".join(causes)
@@ -57,20 +65,40 @@ class Plane:
     spans: tuple[float, float]  # each cause's distance from the twin's value to where the gains fail on it alone
 
 
+class RowsRacing(StillBuilding):
+    """The plane's races are still running in another process: ``done`` of ``total`` are ready."""
+
+    def __init__(self, done: int, total: int):
+        super().__init__(f"the twin's races of both at once are still running in another process: {done} of {total} "
+                         "done")
+        self.done, self.total = done, total
+
+
 def race_plane(twin: DigitalTwin, gains: dict, causes: tuple[str, str], seed: int, limits: LapLimits,
-               seeds: int = EDGE_SEEDS) -> Plane:
-    """Race ``gains`` along the first cause at ``ROWS`` values of the second (each row a cached race)."""
+               seeds: int = EDGE_SEEDS, wait_s: float | None = None) -> Plane:
+    """Race ``gains`` along the first cause at ``ROWS`` values of the second (each row a cached race). ``wait_s``:
+    how long to wait in all for races another process is running (None: until they are done), else
+    :class:`RowsRacing`."""
     first, second = causes
     d1, d2 = service_direction(twin, first, []), service_direction(twin, second, [])
     start, end = race_range(twin, first, [], d1)
     s2, e2 = race_range(twin, second, [], d2)
-    alone = twin_edge(twin, gains, second, s2, e2, d2, seed, limits, seeds=seeds)
+    left = time_left(wait_s)
+    try:
+        alone = twin_edge(twin, gains, second, s2, e2, d2, seed, limits, seeds=seeds, wait_s=left())
+    except StillBuilding:
+        raise RowsRacing(0, ROWS + 1) from None
     own = float(twin.space.get(second))
     far = alone.failure.threshold if alone.failure is not None else e2
     values = own + (far - own) * (1 - (1 - np.linspace(0.0, 1.0, ROWS)) ** ROW_CROWDING)
     # the row at the twin's own value is the first cause's race alone (the same gains: the same cached race)
-    edges = [(float(w), twin_edge(twin, gains if k == 0 else {**gains, second: float(w)}, first, start, end, d1,
-                                  seed, limits, seeds=seeds)) for k, w in enumerate(values)]
+    edges = []
+    for k, w in enumerate(values):
+        try:
+            edges.append((float(w), twin_edge(twin, gains if k == 0 else {**gains, second: float(w)}, first, start,
+                                              end, d1, seed, limits, seeds=seeds, wait_s=left())))
+        except StillBuilding:
+            raise RowsRacing(1 + k, ROWS + 1) from None
     failing = [(w, e.failure) for w, e in edges if e.failure is not None]
     seen = [(w, e.observation) for w, e in edges if e.observation is not None]
     own_edge = edges[0][1].failure
@@ -89,10 +117,10 @@ def race_ahead_both(twin: DigitalTwin, gains: dict, seed: int = 0) -> Plane:
 
 def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes: tuple[str, str], now_lap: int,
                         seed: int = 0, lap_timeout_s: float = LAP_TIMEOUT_S, filter_seed: int | None = None,
-                        seeds: int = EDGE_SEEDS) -> Forecast:
+                        seeds: int = EDGE_SEEDS, race_wait_s: float | None = None) -> Forecast:
     """When the ``gains`` in force first fail with both ``causes`` wearing, from the robot's ``laps`` up to
     ``now_lap`` (each with its lap time and the line's mean offset: with the lap time alone any one cause explains
-    the laps, and the two cannot be told apart)."""
+    the laps, and the two cannot be told apart). ``race_wait_s``: as :func:`tuner.history.forecast_failure`'s."""
     filter_seed = seed if filter_seed is None else filter_seed
     address = joint_address(causes)
     outs = sorted((o for o in outcomes_of(laps, gains) if o.lap <= now_lap), key=lambda o: (o.lap, o.failed))
@@ -103,7 +131,13 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
         return no_number(address, now_lap, f"the laps carry the lap time alone, which either of {causes[0]} and "
                           f"{causes[1]} explains: the two cannot be told apart, no number for both at once",
                           evidence, "too little evidence")
-    plane = race_plane(twin, gains, causes, seed, LapLimits(timeout_s=lap_timeout_s), seeds)
+    try:
+        plane = race_plane(twin, gains, causes, seed, LapLimits(timeout_s=lap_timeout_s), seeds, race_wait_s)
+    except RowsRacing as e:
+        return no_number(address, now_lap, f"neither {causes[0]} nor {causes[1]} alone explains the laps, and the "
+                         f"twin's races of both at once are still running in another process (live's race-ahead, "
+                         f"or another history): {e.done} of {e.total} done; no number for both at once yet, ask "
+                         "again", evidence, STILL_RACING)
     if plane.failure is None or plane.observation is None:
         return dataclasses.replace(no_number(
             address, now_lap, f"the twin's races of {causes[0]} at {len(plane.rows)} values of {causes[1]} give "
@@ -162,15 +196,21 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
 
 def forecasts_of(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], causes: list[str],
                  now_lap: int, seed: int = 0, filter_seed: int | None = None,
-                 record: dict | None = None) -> dict[str, Forecast]:
+                 record: dict | None = None, race_wait_s: float | None = None) -> dict[str, Forecast]:
     """{address: forecast} for each cause on its own and, when no one of the parts that wear explains the last laps
     while two of them do wear, for both at once (:func:`forecast_two_causes`, keyed by :func:`joint_address`).
-    ``record``: each one-cause filter's inputs, by address (:func:`forecast_failure`)."""
-    out = {a: forecast_failure(twin, gains, alignments, laps, a, now_lap, seed=seed, filter_seed=filter_seed,
-                               record=record) for a in causes}
+    ``record``: each one-cause filter's inputs, by address (:func:`forecast_failure`). ``race_wait_s``: how long
+    the forecasts wait in all for races another process is running (None: until they are done); a forecast whose
+    races are not done by then says so."""
+    left = time_left(race_wait_s)
+    out: dict[str, Forecast] = {}
+    for a in causes:  # once a race is another process's, the ones after it are to come from it too: not raced here
+        waiting = any(f.note == STILL_RACING for f in out.values())
+        out[a] = forecast_failure(twin, gains, alignments, laps, a, now_lap, seed=seed, filter_seed=filter_seed,
+                                  record=record, race_wait_s=left(), race_here=not waiting)
     worn = tuple(sorted(SERVICE))
     misfits = [out[a].misfit if a in out else None for a in worn]
     if len(worn) == 2 and all(m is not None and m > MISFIT_LIMIT for m in misfits):
         out[joint_address(worn)] = forecast_two_causes(twin, gains, laps, worn, now_lap, seed=seed,
-                                                       filter_seed=filter_seed)
+                                                       filter_seed=filter_seed, race_wait_s=left())
     return out

@@ -33,6 +33,11 @@ def add_parser(sub) -> None:
                    "writing, is refused")
     p.add_argument("--log", action="append", metavar="FILE", help="a telemetry log of live (with --rebuild), repeatable")
     p.add_argument("--no-forecast", action="store_true", help="report without racing the twin")
+    p.add_argument("--race-wait", type=o.number(0.0, 900.0), metavar="S", help="wait at most S seconds in all for "
+                   "the twin's races of the gains in force that live's race-ahead (or another history) is still "
+                   "running: a forecast whose races are not done by then says so and gives no number (ask again), "
+                   "and the races after it are left to that process too; with no other process racing, they are "
+                   "raced here, as without the flag; default: wait until they are done, up to 900 s each")
     o.add_world(p)
     o.add_values(p, "the robot's model-space parameter, for the forecast, repeatable")
     o.add_seed(p, 0, "the forecast's first noise seed")
@@ -81,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         quiet = args.json or args.quiet
         entries = report(history, twin, args.robot_id, args.seed,
-                         None if quiet else lambda text: print(text, file=sys.stderr, flush=True))
+                         None if quiet else lambda text: print(text, file=sys.stderr, flush=True), args.race_wait)
     finally:
         history.close()
     if not entries:
