@@ -25,14 +25,14 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
   * the Monte Carlo's own error: the forecast at half of the life again on ``FILTER_SEEDS`` filter seeds (the
     races kept): the spread of their medians as a fraction of the true remaining life, and α-λ on each seed;
   * the forecast's wall time (a forecast must be ready within one lap at real time on 2 cores): each robot's
-    ``live --race-ahead`` races its gains on the twin in the background for each cause (each robot with a cache
-    folder of its own, or with ``--share-cache`` one for all, as robots on one machine share the user's: robots on
-    the same gains then race them once): how long that took, against the laps a forecast waits for
-    (``MIN_TIMED_LAPS``) at real time; the first forecast, on those races (a robot kept by an older ``--keep`` has none: its first forecast
-    races the twin); and once more after forgetting them, as a new ``history`` process does. At real time: is the
-    first forecast, and the first of both parts at once (the first lap, read lap by lap, where no part alone
-    explains the laps: it needs the race-ahead's rows of both), ready within a lap of being asked, given when this
-    run's races were done (each entry's time in the robot's cache folder) and the forecast's own wall time?
+    ``live --race-ahead`` races its gains on the twin in the background for each cause (each robot with a cache folder
+    of its own, or with ``--share-cache`` one for all, as robots on one machine share the user's: robots on the same
+    gains then race them once): how long that took, against the laps a forecast waits for (``MIN_TIMED_LAPS``) at real
+    time; the first forecast, on those races (a robot kept by an older ``--keep`` has none: its first forecast races the
+    twin); and once more after forgetting them, as a new ``history`` process does. At real time: is the first forecast,
+    and the first of both parts at once (the first lap, read lap by lap, where no part alone explains the laps: it needs
+    the race-ahead's rows of both), ready within a lap of being asked, given when this run's races were done (each
+    entry's time in the robot's cache folder) and the forecast's own wall time?
 
   python benchmarks/bench_forecast.py [--seeds 2] [--speed 10] [--scenario NAME ...] [--keep DIR | --again DIR]
                                       [--share-cache] [--parallel 2] [--quick] [--json]

@@ -106,11 +106,11 @@ def _one_builder(target: str, what: str, wait_s: float | None = None) -> Iterato
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 break
             except BlockingIOError:
-                if time.monotonic() > deadline and wait_s is not None:
-                    gave_up = True
-                    raise StillBuilding(f"cache: {what} {target} is still being built by another process after "
-                                        f"{wait_s:g} s") from None
                 if time.monotonic() > deadline:
+                    if wait_s is not None:
+                        gave_up = True
+                        raise StillBuilding(f"cache: {what} {target} is still being built by another process after "
+                                            f"{wait_s:g} s") from None
                     log.warning("cache: %s %s is still being built by another process after %.0f s; building it "
                                 "here too", what, target, BUILD_WAIT_S)
                     break

@@ -84,21 +84,18 @@ def race_plane(twin: DigitalTwin, gains: dict, causes: tuple[str, str], seed: in
     start, end = race_range(twin, first, [], d1)
     s2, e2 = race_range(twin, second, [], d2)
     left = time_left(wait_s)
+    alone, edges = None, []
     try:
         alone = twin_edge(twin, gains, second, s2, e2, d2, seed, limits, seeds=seeds, wait_s=left())
-    except StillBuilding:
-        raise RowsRacing(0, ROWS + 1) from None
-    own = float(twin.space.get(second))
-    far = alone.failure.threshold if alone.failure is not None else e2
-    values = own + (far - own) * (1 - (1 - np.linspace(0.0, 1.0, ROWS)) ** ROW_CROWDING)
-    # the row at the twin's own value is the first cause's race alone (the same gains: the same cached race)
-    edges = []
-    for k, w in enumerate(values):
-        try:
+        own = float(twin.space.get(second))
+        far = alone.failure.threshold if alone.failure is not None else e2
+        values = own + (far - own) * (1 - (1 - np.linspace(0.0, 1.0, ROWS)) ** ROW_CROWDING)
+        # the row at the twin's own value is the first cause's race alone (the same gains: the same cached race)
+        for k, w in enumerate(values):
             edges.append((float(w), twin_edge(twin, gains if k == 0 else {**gains, second: float(w)}, first, start,
                                               end, d1, seed, limits, seeds=seeds, wait_s=left())))
-        except StillBuilding:
-            raise RowsRacing(1 + k, ROWS + 1) from None
+    except StillBuilding:  # (the second cause's race alone, then the rows)
+        raise RowsRacing(len(edges) + (alone is not None), ROWS + 1) from None
     failing = [(w, e.failure) for w, e in edges if e.failure is not None]
     seen = [(w, e.observation) for w, e in edges if e.observation is not None]
     own_edge = edges[0][1].failure
