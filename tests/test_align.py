@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from tuner.align.lap_time import align_lap_time, reachable_intervals
+from tuner.align.lap_time import align_lap_time, reachable_intervals, refine_midpoints
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.run import main
@@ -72,6 +72,21 @@ def test_reachable_lap_times_are_intervals_split_by_failures_and_steps():
     assert reachable_intervals([(1.0, 10.0), (1.00001, 12.0), (2.0, 12.5)]) == [(10.0, 10.0), (12.0, 12.5)]
     # the same gap across a wide stretch of values is a slope: continuous, one interval
     assert reachable_intervals([(1.0, 10.0), (1.5, 12.0), (2.0, 12.5)]) == [(10.0, 12.5)]
+
+
+@pytest.mark.quick
+def test_refinement_looks_where_the_measurement_may_lie_and_not_past_the_noise():
+    # t(p) falls 5, 4, 3 s over values 2, 3, 4 and fails at 1 (hand-made scan; midpoints are geometric)
+    scan = [(1.0, None), (2.0, 5.0), (3.0, 4.0), (4.0, 3.0)]
+    # 3.5 s: it lies between 3 and 4 and within one step (1 s) of 2–3; the band below 2 would run on above 5 s,
+    # 1.5 s away from it: not looked into; the measurement is explained, so no step far from it is refined either
+    assert refine_midpoints(scan, 3.5, 0.001) == ([pytest.approx(6 ** 0.5), pytest.approx(12 ** 0.5)], [])
+    # 5.8 s: the band may hold it, and 2–3 is within reach; 3–4 is a 25 % step far from it: refined only while
+    # nothing explains the measurement
+    near, steps = refine_midpoints(scan, 5.8, 0.001)
+    assert near == [pytest.approx(2 ** 0.5), pytest.approx(6 ** 0.5)] and steps == [pytest.approx(12 ** 0.5)]
+    # the laps at 4 range over 2.2 s: its 3 s median and the 4 s at 3 are not told apart by a value between them
+    assert refine_midpoints(scan, 3.5, 0.001, {4.0: (2.0, 4.2)}) == ([pytest.approx(6 ** 0.5)], [])
 
 
 def test_flat_lap_time_is_not_identifiable(fast_twin):

@@ -8,12 +8,16 @@ Gradient descent on (t_sim(p) − t_measured)², as in the paper, safeguarded fo
    range, instead of returning the nearest bound as if it were an answer.
 2. **Refine** (one batch per round, at most ``REFINE_ROUNDS`` rounds and ``REFINE_LAPS`` laps): t(p) can be steep
    and narrow, just above the grip limit, where eight scan points miss it. A midpoint is added between
-   neighbours where one lap fails and the other completes, between neighbours whose lap times differ by
-   more than the measurement's tolerance while the measurement lies within their reach (between them, or
-   within one such difference of them), and between neighbours whose lap times differ by more than ``JUMP``
-   (a step in t(p) or a steep stretch: refined until it is known which). The lap times the parameter can give
-   are reported as intervals (:func:`reachable_intervals`): a failing lap between two values, or a step that
-   refinement narrowed to ``FLOOR`` of the value without closing, separates two intervals.
+   neighbours where one lap fails and the other completes, when the laps between them may take the measurement
+   (t(p) runs on steeply towards a limit the way it runs into it, so the measurement lies that way, or within one
+   step of the last completed lap), and between neighbours whose lap times differ by more than the measurement's
+   tolerance and by more than half the spread of their own laps (nearer than that the noise, not the parameter,
+   orders them) while the measurement lies within their reach (between them, or within one such difference of
+   them). Only while no lap explains the measurement does it also refine between neighbours whose lap times differ
+   by more than ``JUMP`` (a step in t(p) or a steep stretch: refined until it is known which), for the lap times
+   it reports it can give instead. Those are reported as intervals (:func:`reachable_intervals`): a failing lap
+   between two values, or a step that refinement narrowed to ``FLOOR`` of the value without closing, separates
+   two intervals.
 3. **Brackets**: every pair of neighbouring scan values whose lap times straddle the measurement.
 4. **Descend** inside each bracket. Each iteration is one batch of three laps (p and p(1 ± h)) for the residual
    r = t − t_m and its slope; the step is the Gauss–Newton step on r² (gradient descent with γ = 1/(2 r'²)).
@@ -158,19 +162,45 @@ def _resolved(a: float, b: float) -> bool:
     return b - a <= FLOOR * max(abs(a), abs(b), 1e-9)
 
 
-def _refine(points: list[tuple[float, float | None]], m: float, tol: float) -> list[float]:
-    """Where the scan may have stepped over a crossing or a step: midpoints of the intervals to look into."""
-    out = []
-    for (a, ta), (b, tb) in zip(points, points[1:]):
+def refine_midpoints(points: list[tuple[float, float | None]], m: float, tol: float,
+            spreads: dict[float, tuple[float, float] | None] | None = None) -> tuple[list[float], list[float]]:
+    """Where the scan may have stepped over a crossing or a step: (midpoints where a crossing may hide, midpoints
+    where t(p) only jumps by more than ``JUMP`` far from the measurement). Neighbours whose medians differ by no
+    more than half the spread of their own laps (``spreads``: each value's fastest and slowest lap) are not told
+    apart by a value between them: the noise, not the parameter, orders them there (near a limit t(p) is jagged)."""
+    half = {v: 0.5 * (s[1] - s[0]) for v, s in (spreads or {}).items() if s}
+    near, jumps = [], []
+    for i, ((a, ta), (b, tb)) in enumerate(zip(points, points[1:])):
         if _resolved(a, b):
             continue  # as fine as it is worth going
         if (ta is None) != (tb is None):
-            out.append(_midpoint(a, b))
-        elif ta is not None and abs(ta - tb) > tol * m:
+            if _band_may_reach(points, i + 1 if ta is None else i, -1 if ta is None else 1, m):
+                near.append(_midpoint(a, b))
+        elif ta is not None and abs(ta - tb) > max(tol * m, half.get(a, 0.0), half.get(b, 0.0)):
             reach = abs(ta - tb)
-            if min(ta, tb) - reach <= m <= max(ta, tb) + reach or abs(ta - tb) > JUMP * min(ta, tb):
-                out.append(_midpoint(a, b))
-    return out
+            if min(ta, tb) - reach <= m <= max(ta, tb) + reach:
+                near.append(_midpoint(a, b))
+            elif reach > JUMP * min(ta, tb):
+                jumps.append(_midpoint(a, b))
+    return near, jumps
+
+
+def _band_may_reach(points: list[tuple[float, float | None]], k: int, away: int, m: float) -> bool:
+    """Whether the laps between the completed value ``points[k]`` and the failed one beside it (``away``: -1 below,
+    +1 above) may take the measured ``m``: near a limit t(p) runs on steeply the way it runs into ``points[k]`` from
+    its completed neighbour on the other side, so ``m`` must lie that way, or within one such step of it. Without
+    that neighbour (or a failed one there) anything may lie in the band."""
+    j = k - away
+    if not 0 <= j < len(points) or points[j][1] is None:
+        return True
+    tb, tc = points[k][1], points[j][1]
+    return (m - tb) * math.copysign(1.0, tb - tc) >= -abs(tb - tc)
+
+
+def _explained(points: list[tuple[float, float | None]], m: float, tol: float) -> bool:
+    """Some completed neighbours straddle the measurement, or a lap lies within ``tol`` of it."""
+    done = [t for _, t in points if t is not None]
+    return any(abs(t - m) <= tol * m for t in done) or any((a - m) * (b - m) < 0 for a, b in zip(done, done[1:]))
 
 
 def reachable_intervals(points: list[tuple[float, float | None]]) -> list[tuple[float, float]]:
@@ -323,6 +353,7 @@ def align_lap_time(
     # acts by ratios)
     values = list(np.geomspace(lo, hi, SCAN_POINTS) if lo > 0 else np.linspace(lo, hi, SCAN_POINTS))
     points: list[tuple[float, float | None]] = []
+    spreads: dict[float, tuple[float, float] | None] = {}
     for _ in range(REFINE_ROUNDS + 1):
         values = values[: max(0, SCAN_POINTS + REFINE_LAPS - len(points))]
         if not values:
@@ -331,7 +362,10 @@ def align_lap_time(
         trace += [AlignPoint(0, float(v), t, spread) for v, (t, spread) in zip(values, laps)]
         times = [t for t, _ in laps]
         points = sorted(points + [(float(v), t) for v, t in zip(values, times)])
-        values = _refine(points, m, TOLERANCE)
+        spreads.update((float(v), spread) for v, (_, spread) in zip(values, laps))
+        near, jumps = refine_midpoints(points, m, TOLERANCE, spreads)
+        # a step far from the measurement matters to the lap times reported when nothing explains it
+        values = near or ([] if _explained(points, m, TOLERANCE) else jumps)
     done = [(v, t) for v, t in points if t is not None]
     widen = (f"search another range with {bounds_flag} {address}=LO,HI" if given else
              f"the default range is {address}'s {'documented physical' if address in PHYSICAL_RANGE else 'nearby'} "
