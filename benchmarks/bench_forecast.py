@@ -1,12 +1,13 @@
 """A prognostics benchmark: ageing robots (``emulate --drift``, plainly tuned gains, each its own noise seed) watched
 by plain ``live`` for scenario × seed, each robot run to its real first failed lap; then, from what ``live``
 recorded (its alignments, stamped with the laps they measured, and the robot's laps: lap time, the line's mean
-offset), ``history``'s forecast (:func:`tuner.history.two_causes.forecasts_of`: each part that wears and, when
+offset and side), ``history``'s forecast (:func:`tuner.history.two_causes.forecasts_of`: each part that wears and, when
 no one explains the laps, both at once; the soonest, as ``history`` says it) made at several points of life,
 against the lap the robot first failed.
 
 The metrics of the field (the definitions of Saxena et al. 2010, as ProgPy's ``progpy.metrics`` computes them;
-written out here on plain numbers so the benchmark needs neither ProgPy's containers nor its import time):
+written out on plain numbers in tests/prognostic_metrics.py, so the benchmark needs neither ProgPy's containers nor
+its import time):
   * coverage: how often the true remaining life (laps from the forecast to the first failed lap) lies in the
     stated 90 % interval (an open end counts as covering), with the interval's median width;
   * α-λ accuracy (α = 0.2, λ = 0.5): at the forecast nearest half of the life, is the median within ±20 % of the
@@ -16,12 +17,17 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
   * relative accuracy at λ = 0.5: 1 − |true − median|/true;
   * the information limit (one part wearing straight or speeding up): at half of the life, the Cramér–Rao bound
     on the remaining life from the robot's laps read through the twin (:mod:`tuner.prognostics.information`), and
-    how often an unbiased forecast that good would meet α-λ;
+    how often an unbiased forecast that good would meet α-λ; and the same from the lap time alone, and with the
+    line's offset (what each feature adds);
   * the exact posterior (one part wearing straight or speeding up): at half of the life, the posterior of the
     filter's own model on the evidence the forecast gave its filter, by adaptive importance sampling
     (tests/exact_posterior.py; without the rate's walk, which it does not model, and renewals, which it models
     one lap at a time: a sampler per lap, too slow beside every forecast; tests check it on them): its share of futures
     speeding up and its median against the filter's and the truth, so a miss shows as the evidence's or the filter's;
+  * the twin's own Monte Carlo (``--race-seeds K``): the forecast at half of the life again from the twin raced on K
+    other draws of its noise seeds (its failure and observation models are means over a few seeds a value, and every
+    robot on the same gains reads through the same draw, so the robots above are not independent of it): the spread
+    of the medians, and coverage and α-λ over (robot, race seed);
   * the Monte Carlo's own error: the forecast at half of the life again on ``FILTER_SEEDS`` filter seeds (the
     races kept): the spread of their medians as a fraction of the true remaining life, and α-λ on each seed;
   * the forecast's wall time (a forecast must be ready within one lap at real time on 2 cores): each robot's
@@ -35,10 +41,10 @@ written out here on plain numbers so the benchmark needs neither ProgPy's contai
     entry's time in the robot's cache folder) and the forecast's own wall time?
 
   python benchmarks/bench_forecast.py [--seeds 2] [--speed 10] [--scenario NAME ...] [--keep DIR | --again DIR]
-                                      [--share-cache] [--parallel 2] [--quick] [--json]
+                                      [--share-cache] [--parallel 2] [--race-seeds K] [--quick] [--json]
 
 ``--quick``: one robot of the linear scenario compressed to 24 laps, at 20× real time, on the plain gains the tests
-hold fixed (``QUICK_GAINS``), its races in the cache folder of the run that started it (the tests' run races those
+hold fixed (``QUICK_GAINS``), at half of its life on one more draw of the twin's races, its races in the cache folder of the run that started it (the tests' run races those
 gains once for all its forecasts), for CI: the script cannot rot; the figures are not the table's.
 """
 
@@ -68,6 +74,7 @@ from twin.link.emulator import Drift
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 from exact_posterior import exact_posterior  # noqa: E402  (an independent estimator of the filter's posterior)
+from prognostic_metrics import ALPHA, LAMBDA, metrics  # noqa: E402  (the field's metrics over these robots)
 from reference_gains import PLAIN_HELD, set_flags, tuned_gains  # noqa: E402  (the one home of tuned gains)
 
 PLAIN: dict[str, float] = {}  # the gains ``tune`` answers today for the robot as built, tuned by main
@@ -86,8 +93,9 @@ POINTS = (0.3, 0.5, 0.7, 0.9)  # forecasts at these fractions of the life (first
 EVERY = 5  # … and every this many laps (for the prognostic horizon)
 CAUSES = sorted(SERVICE)  # what history forecasts for a robot: each part that wears; the soonest is the forecast
 PITCH_M = 0.009525  # the default robot's sensor pitch (the robots here are the default robot)
-ALPHA, LAMBDA = 0.2, 0.5
 FILTER_SEEDS = 4  # the forecast at half of the life on this many filter seeds: how far its Monte Carlo moves it
+RACE_SEED_STEP = 100_000  # --race-seeds: race seed k draws the twin's laps from noise seed k·RACE_SEED_STEP on (the
+# races of seed 0 take a few hundred)
 SEED, SEED_STEP = 7, 1000  # the robots' emulate --seed: 7, 1007, … (each robot's laps use SEED + lap)
 
 
@@ -130,8 +138,9 @@ def races_done(folder: str, started: float) -> list[float]:
 
 
 def robot_laps_of(folder: str) -> list:
-    """The robot's own laps from its echo log: (lap time or None, the line's mean offset [m])."""
-    return [(lap.lap_time_s, cross_track(lap, PITCH_M)[1]) for lap in log_laps(os.path.join(folder, "echo.txt"))]
+    """The robot's own laps from its echo log: (lap time or None, the line's mean offset [m], its mean signed offset
+    [m]), as the history reads them (:func:`tuner.history.ingest.cross_track`)."""
+    return [(lap.lap_time_s, *cross_track(lap, PITCH_M)[1:]) for lap in log_laps(os.path.join(folder, "echo.txt"))]
 
 
 def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: int) -> dict | None:
@@ -139,7 +148,8 @@ def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: 
     curve (``drifts``): the Cramér–Rao bound on the remaining life from its laps read through the twin's own
     observation model at the twin's own scatter (:mod:`tuner.prognostics.information`; value, rate and
     acceleration unknown), and the chance an unbiased forecast that good is within ±α (None: a step or two
-    causes, which the bound's family does not describe)."""
+    causes, which the bound's family does not describe); and the same from fewer of the features (the lap time
+    alone, then with the line's offset: what each adds), with how far one lap pins the part at its value now."""
     if len(drifts) != 1:
         return None
     drift = Drift.parse(drifts[0], twin)
@@ -149,13 +159,19 @@ def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: 
     if edge.failure is None or edge.observation is None:
         return None
     values = [drift.at(k) for k in range(now + 1)]
-    try:
-        remaining, sd = remaining_life_bound(values, [edge.observation.pins(v) for v in values],
-                                             edge.failure.threshold, now)
-    except ValueError:  # too few laps that say anything
-        return None
-    return {"now": now, "crossing_laps": round(remaining, 1), "sd_laps": round(sd, 2),
-            "alpha_lambda_attainable": round(within_alpha(true_rul, sd, ALPHA), 3)}
+    names = edge.observation.names
+    by = {}
+    for k in range(1, len(names) + 1):
+        model = edge.observation.subset(names[:k])
+        try:
+            remaining, sd = remaining_life_bound(values, [model.pins(v) for v in values], edge.failure.threshold, now)
+        except ValueError:  # too few laps that say anything
+            return None
+        by["+".join(names[:k])] = {"sd_laps": round(sd, 2), "alpha_lambda_attainable":
+                                   round(within_alpha(true_rul, sd, ALPHA), 3), "pins_now": model.pins(values[-1])}
+    every = by["+".join(names)]
+    return {"now": now, "crossing_laps": round(remaining, 1), "sd_laps": every["sd_laps"],
+            "alpha_lambda_attainable": every["alpha_lambda_attainable"], "by_features": by}
 
 
 def exact_check(drifts: list[str], twin: DigitalTwin, forecast, record: dict, now: int, true_rul: int,
@@ -181,8 +197,8 @@ def exact_check(drifts: list[str], twin: DigitalTwin, forecast, record: dict, no
 def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int,
                  drifts: list[str] = (), cache: str | None = None) -> dict:
     """The forecasts at POINTS of the life, and every EVERY laps (for the prognostic horizon), from what the
-    history would hold: live's alignments and the robot's laps (lap time, the line's mean offset)."""
-    lap_times = [t for t, _ in robot_laps]
+    history would hold: live's alignments and the robot's laps (lap time, the line's mean offset and side)."""
+    lap_times = [t for t, *_ in robot_laps]
     twin_edge.forget_races()  # each robot's first forecast reads the races its live ran ahead, in its cache folder
     if cache:  # (as run_robot ran it)
         twin_edge.RACES = os.path.join(cache, EDGES)
@@ -196,8 +212,8 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     if failed is None:
         return out
     aligned = [a for a in doc["alignments"] if a.get("lap") is not None]
-    laps = [{"n": k, "completed": t is not None, "gains": PLAIN, "lap_time_s": t, "xte_mean_m": x}
-            for k, (t, x) in enumerate(robot_laps)]
+    laps = [{"n": k, "completed": t is not None, "gains": PLAIN, "lap_time_s": t, "xte_mean_m": x, "line_side_m": side}
+            for k, (t, x, side) in enumerate(robot_laps)]
     at = sorted({max(1, round(p * failed)) for p in POINTS} | set(range(EVERY, failed, EVERY)))
 
     joint = joint_address(tuple(sorted(SERVICE)))
@@ -249,12 +265,33 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     others = [forecast(half["now"], filter_seed=k)[0].laps_to_failure for k in range(seed + 1, seed + FILTER_SEEDS)]
     out["filter_seeds_at_half"] = {"now": half["now"], "true_rul": half["true_rul"],
                                    "medians": [half["median"], *others]}
+    out["evidence_at_half"] = {"alignments": [a for a in aligned if a["lap"] <= half["now"]],
+                               "laps": laps[:half["now"] + 1]}
     out["information_limit"] = information_limit(twin, list(drifts), half["now"], half["true_rul"])
     twin_edge.forget_races()  # a new history process: the races read back from the cache folder
     again, wall = forecast(at[-1])
     assert again.quantiles == f.quantiles and again.statement == f.statement, "a race read back is not the race"
     out["cached_wall_s"] = round(wall, 2)
     return out
+
+
+def race_seeds_at_half(twin: DigitalTwin, run: dict, race_seeds: int) -> dict | None:
+    """The forecast at half of the life again, on the same evidence and filter seed, from the twin raced on
+    ``race_seeds`` other draws of its noise seeds (into whatever cache folder ``twin_edge.RACES`` names: robots on the
+    same gains share them): {"now", "true_rul", "forecasts": [{"median", "lo", "hi"}, …]}, race seed 0's first."""
+    half = next((f for f in run["forecasts"] if f["now"] == run["filter_seeds_at_half"]["now"]), None) \
+        if run.get("filter_seeds_at_half") else None
+    if half is None:
+        return None
+    given = run["evidence_at_half"]
+    out = [{"median": half["median"], "lo": half["lo"], "hi": half["hi"]}]
+    for k in range(1, race_seeds + 1):
+        f = soonest(history_forecasts(twin, PLAIN, given["alignments"], given["laps"], CAUSES, half["now"],
+                                      seed=k * RACE_SEED_STEP, filter_seed=0).values())
+        q = f.quantiles
+        out.append({"median": f.laps_to_failure, "lo": None if q is None else q["5"],
+                    "hi": None if q is None else q["95"]})
+    return {"now": half["now"], "true_rul": half["true_rul"], "forecasts": out}
 
 
 def ready_within_a_lap(done: list[float], lap_times: list[float], first: dict | None,
@@ -283,73 +320,6 @@ def ready_within_a_lap(done: list[float], lap_times: list[float], first: dict | 
     return out
 
 
-def _covered(f: dict) -> bool:
-    lo = f["lo"] if f["lo"] is not None else -math.inf
-    hi = f["hi"] if f["hi"] is not None else math.inf
-    return lo <= f["true_rul"] <= hi
-
-
-def metrics(runs: list[dict]) -> dict:
-    points = [f for r in runs for f in r["forecasts"] if f["at_point"] and f["numbered"]]
-    silent = sum(1 for r in runs for f in r["forecasts"] if f["at_point"] and not f["numbered"])
-    widths = [f["hi"] - f["lo"] for f in points if f["hi"] is not None and f["lo"] is not None]
-    alpha_lambda, ra, horizons = [], [], []
-    for r in runs:
-        life = r["first_failed_lap"]
-        if not life or not r["forecasts"]:
-            continue
-        half = min(r["forecasts"], key=lambda f: abs(f["now"] - LAMBDA * life))
-        if half["numbered"] and half["median"] is not None:
-            alpha_lambda.append(abs(half["median"] - half["true_rul"]) <= ALPHA * half["true_rul"])
-            ra.append(1 - abs(half["true_rul"] - half["median"]) / half["true_rul"])
-        else:
-            alpha_lambda.append(False)
-        within = [f["numbered"] and f["median"] is not None and abs(f["median"] - f["true_rul"]) <= ALPHA * life
-                  for f in r["forecasts"]]
-        start = next((i for i in range(len(within)) if all(within[i:])), None)
-        horizons.append(0.0 if start is None else (life - r["forecasts"][start]["now"]) / life)
-    walls = [max(f["wall_s"] for f in r["forecasts"]) for r in runs if r["forecasts"]]  # the slowest: the first
-    # to ask for the races (on those live ran ahead)
-    ahead = [r["race_ahead_wall_s"] for r in runs if r.get("race_ahead_state") == "done"]
-    beaten = [r["race_ahead_wall_s"] <= r["min_timed_laps_s"] for r in runs
-              if r.get("race_ahead_state") == "done" and r.get("min_timed_laps_s")]
-    cached = [r["cached_wall_s"] for r in runs if "cached_wall_s" in r]
-    # the same evidence on other filter seeds: the spread of the medians (a fraction of the true remaining life),
-    # and α-λ met on each seed
-    seeded = [r["filter_seeds_at_half"] for r in runs if r.get("filter_seeds_at_half")]
-    spreads = [(max(m) - min(m)) / h["true_rul"] for h in seeded if None not in (m := h["medians"])]
-    per_seed = [m is not None and abs(m - h["true_rul"]) <= ALPHA * h["true_rul"] for h in seeded
-                for m in h["medians"]]
-    bounds = [r["information_limit"]["alpha_lambda_attainable"] for r in runs if r.get("information_limit")]
-    ready = [r["ready"] for r in runs if r.get("ready")]
-    firsts = [x["first"] for x in ready if "first" in x]
-    joints = [x["first_joint"] for x in ready if "first_joint" in x]
-    return {"forecasts": len(points), "without_a_number": silent,
-            "coverage_90": round(sum(map(_covered, points)) / len(points), 3) if points else None,
-            "median_width_laps": statistics.median(widths) if widths else None,
-            "open_ended": len(points) - len(widths),
-            "alpha_lambda_met": round(sum(alpha_lambda) / len(alpha_lambda), 3) if alpha_lambda else None,
-            "relative_accuracy_median": round(statistics.median(ra), 3) if ra else None,
-            "prognostic_horizon_median": round(statistics.median(horizons), 3) if horizons else None,
-            "race_ahead_done": f"{len(ahead)}/{len(runs)}",
-            "race_ahead_wall_s_max": max(ahead) if ahead else None,
-            "race_ahead_within_min_timed_laps": f"{sum(beaten)}/{len(beaten)}",
-            "forecast_wall_s_max": max(walls) if walls else None,
-            "forecast_wall_s_median": statistics.median(walls) if walls else None,
-            "cached_forecast_wall_s_max": max(cached) if cached else None,
-            "cached_forecast_wall_s_median": statistics.median(cached) if cached else None,
-            # at real time (ready_within_a_lap): the first forecast, and the first of both parts at once
-            "first_forecast_within_a_lap": f"{sum(x['within_a_lap'] for x in firsts)}/{len(firsts)}",
-            "first_forecast_late_s_max": max((x["late_s"] for x in firsts), default=None),
-            "first_joint_within_a_lap": f"{sum(x['within_a_lap'] for x in joints)}/{len(joints)}",
-            "first_joint_late_s_max": max((x["late_s"] for x in joints), default=None),
-            "filter_seed_spread_median": round(statistics.median(spreads), 3) if spreads else None,
-            "filter_seed_spread_max": round(max(spreads), 3) if spreads else None,
-            "alpha_lambda_met_per_filter_seed": round(sum(per_seed) / len(per_seed), 3) if per_seed else None,
-            # how often an unbiased forecast at the information limit would meet α-λ (one part, straight or curved)
-            "alpha_lambda_attainable_mean": round(statistics.mean(bounds), 3) if bounds else None}
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=2, help="robots per scenario (emulate --seed 7, 1007, …)")
@@ -362,6 +332,9 @@ def main() -> None:
     ap.add_argument("--share-cache", action="store_true", help="the robots' races in one cache folder, as robots on "
                     "one machine share the user's (the same twin and gains: raced once for all); default: a folder "
                     "per robot, so each robot's races are timed as if its gains were its own")
+    ap.add_argument("--race-seeds", type=int, default=0, metavar="K", help="forecast each robot at half of its life "
+                    "again from the twin raced on K other draws of its noise seeds (default 0: none; the robots "
+                    "share those races, in one cache folder of the run)")
     ap.add_argument("--quick", action="store_true", help="one robot, linear wear in 24 laps, 20× real time (for CI)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -369,6 +342,7 @@ def main() -> None:
         SCENARIOS.clear()
         SCENARIOS.update(QUICK)
         args.seeds, args.speed, args.scenario = 1, 20.0, None
+        args.race_seeds = max(args.race_seeds, 1)  # (its code path too: two more races)
     PLAIN.update(QUICK_GAINS if args.quick else tuned_gains())
     GAINS[:] = set_flags(PLAIN)
     names = args.scenario or list(SCENARIOS)
@@ -403,10 +377,18 @@ def main() -> None:
         with ThreadPoolExecutor(args.parallel) as pool:
             for (name, seed), folder, (doc, robot_laps) in pool.map(one, jobs):
                 print(f"{name} seed {seed}: first failed lap "
-                      f"{next((k for k, (t, _) in enumerate(robot_laps) if t is None), None)}, "
+                      f"{next((k for k, (t, *_) in enumerate(robot_laps) if t is None), None)}, "
                       f"{len(doc['alignments'])} alignments", file=sys.stderr)
                 runs.append({"scenario": name, "seed": seed,
                              **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0], cache_of(folder))})
+        if args.race_seeds > 0:  # after the robots: one cache folder for these races, which every robot asks for
+            twin_edge.RACES = os.path.join(tmp, "race-seeds", EDGES)
+            for r in runs:
+                print(f"{r['scenario']} seed {r['seed']}: its forecast at half of its life on {args.race_seeds} more "
+                      "races of the twin", file=sys.stderr)
+                r["race_seeds_at_half"] = race_seeds_at_half(twin, r, args.race_seeds)
+    for r in runs:
+        r.pop("evidence_at_half", None)  # (the inputs, not a result)
     result = {"speed": None if args.again else args.speed, "seeds": args.seeds, "share_cache": args.share_cache,
               "wall_s": round(time.monotonic() - t0, 1),
               "all": metrics(runs), "by_scenario": {n: metrics([r for r in runs if r["scenario"] == n]) for n in names},
@@ -439,11 +421,18 @@ def main() -> None:
                       f"live started, its races done at {x['races_done_s']} s, {x['wall_s']} s to compute: ready "
                       f"{x['late_s']} s after asking, {'within' if x['within_a_lap'] else 'not within'} a lap "
                       f"({ready['lap_s']} s)")
+        drawn = r.get("race_seeds_at_half")
+        if drawn:
+            said = ", ".join(f"{f['median']} ({f['lo']}–{f['hi']})" for f in drawn["forecasts"])
+            print(f"  {r['scenario']} seed {r['seed']}, at lap {drawn['now']} on {len(drawn['forecasts'])} races of "
+                  f"the twin (seed 0 first): {said}; true {drawn['true_rul']}")
         bound = r.get("information_limit")
         if bound:
             print(f"  {r['scenario']} seed {r['seed']}, information limit at lap {bound['now']}: remaining life "
                   f"known to ± {bound['sd_laps']} laps at best (Cramér–Rao, the twin's scatter): within ±{ALPHA:g} "
-                  f"at most {bound['alpha_lambda_attainable']:.0%} of the time")
+                  f"at most {bound['alpha_lambda_attainable']:.0%} of the time; by the features read: " + "; ".join(
+                      f"{names} ± {b['sd_laps']} laps ({b['alpha_lambda_attainable']:.0%}, a lap pins it to "
+                      f"{b['pins_now']:.3g})" for names, b in bound["by_features"].items()))
 
 
 if __name__ == "__main__":

@@ -35,7 +35,7 @@ FIGURES = {
     "bench_cluster.py": ["local, 1 worker", "local, 2 workers", "Ray, 1 CPU", "Ray, 2 CPUs", "model, 2 CPUs"],
     "bench_fmu.py": ["closed-loop FMU, outputs every 5 ms", "plant FMU", "controller FMU in the twin's loop",
                      "controller FMU behind its wall"],
-    "bench_forecast.py": ["robots (linear", "linear seed 7, lap"],
+    "bench_forecast.py": ["robots (linear", "linear seed 7, lap", "linear seed 7, at lap"],
     "bench_learn.py": ["analysis:"],
     "bench_motors.py": ["pololu-mp-6v-30", "pololu-3pi-30", "largest error [%]"],
     "bench_pil.py": ["PIL lap", "C lap", "MCU only", "3pi program on the board"],

@@ -10,6 +10,8 @@ import numpy as np
 
 from tuner.align.lap_time import align_lap_time
 from tuner.history import forecast_failure
+from tuner.history.forecast import alone_explains, misfit_limit
+from tuner.history.twin_edge import FEATURES
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
@@ -22,6 +24,7 @@ from stand_in import robot_laps
 # the scenario must not move when the tuner does; the test asserts its premise (the first failure within the run)
 from reference_gains import PLAIN_HELD as PLAIN
 LAPS, EVERY = 70, 5  # laps run; an alignment on laps k-1, k every EVERY laps
+ROBOTS, COVERED = 8, 12  # robots read lap by lap, and how many of their 2·ROBOTS intervals must hold the truth
 
 
 def test_the_stated_interval_holds_the_hidden_drifts_first_failure():
@@ -50,20 +53,28 @@ def test_the_stated_interval_holds_the_hidden_drifts_first_failure():
     assert lo <= truth <= (hi if hi is not None else float("inf")), (f.statement, truth, alignments)
 
 
-def test_read_lap_by_lap_the_stated_interval_holds_a_hidden_drifts_first_failure_and_the_order_does_not_matter():
-    """Grip wearing along a drift the benchmark does not use (linear, 0.92 → 0.62 over 60 laps), read from every
-    lap's time and line offset, no alignment at all: at a third and at two thirds of the life the stated 90 %
-    interval holds the first failed lap; the same laps in another order give the same forecast bit for bit."""
+def test_read_lap_by_lap_the_stated_interval_holds_hidden_drifts_first_failures_and_the_order_does_not_matter():
+    """Grip wearing along a drift the benchmark does not use (linear, 0.92 → 0.62 over 60 laps) on ROBOTS robots of
+    their own noise seeds, read from every lap's time and the line's offset and side, no alignment at all: at a
+    third and at two thirds of each one's life the stated 90 % interval holds its first failed lap at least
+    COVERED times of 2·ROBOTS (binomial: a calibrated interval fails this 1.7 % of the time, and one covering 85 %
+    7.9 %; one robot alone, as this test was until the line's side was read, misses one time in ten: seeds 700
+    onwards did at two thirds, 13 laps left against 14–32); the same laps in another order give the same forecast
+    bit for bit."""
     twin = DigitalTwin()
     twin.model()
-    laps = robot_laps(twin, PLAIN, ["motion.mu=0.92:0.62@60"], 60, 700)
-    first_failed = next((k for k, r in enumerate(laps) if not r["completed"]), None)
-    assert first_failed is not None and 25 < first_failed < 60, first_failed  # decidable: seen within the run
-    for now in (first_failed // 3, 2 * first_failed // 3):
-        f = forecast_failure(twin, PLAIN, [], laps[:now + 1], "motion.mu", now_lap=now)
-        assert f.interval is not None and f.evidence["features"] == ["lap_time_s", "line_offset_m"], f.statement
-        lo, hi = f.interval
-        assert lo <= first_failed - now <= (hi if hi is not None else float("inf")), (now, f.statement)
+    covered, said = 0, []
+    for r in range(ROBOTS):
+        laps = robot_laps(twin, PLAIN, ["motion.mu=0.92:0.62@60"], 60, 700 + 1000 * r)
+        first_failed = next((k for k, lap in enumerate(laps) if not lap["completed"]), None)
+        assert first_failed is not None and 25 < first_failed < 60, first_failed  # decidable: seen within the run
+        for now in (first_failed // 3, 2 * first_failed // 3):
+            f = forecast_failure(twin, PLAIN, [], laps[:now + 1], "motion.mu", now_lap=now)
+            assert f.interval is not None and f.evidence["features"] == list(FEATURES), f.statement
+            lo, hi = f.interval
+            covered += lo <= first_failed - now <= (hi if hi is not None else float("inf"))
+            said.append((r, now, first_failed - now, f.statement))
+    assert covered >= COVERED, said
     shuffled = [laps[k] for k in np.random.default_rng(3).permutation(now + 1)]
     assert forecast_failure(twin, PLAIN, [], shuffled, "motion.mu", now_lap=now) == f
 
@@ -86,7 +97,7 @@ def test_two_causes_at_once_grip_alone_does_not_explain_and_the_battery_that_doe
           for a in ("motion.mu", "motor.supply_voltage")}
     grip, battery = fs["motion.mu"], fs["motor.supply_voltage"]
     assert grip.laps_to_failure is None and grip.interval is None and "alone does not explain" in grip.statement
-    assert grip.misfit > 100 and battery.misfit < 30
+    assert grip.misfit > 3 * misfit_limit(len(FEATURES)) and alone_explains(battery), (grip.misfit, battery.misfit)
     assert "only motor.supply_voltage alone explains" in causes_note(fs, []) and soonest(fs.values()) is battery
     lo, hi = battery.interval
     assert lo <= first_failed - now <= (hi if hi is not None else float("inf")), (battery.statement, first_failed)

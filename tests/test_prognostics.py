@@ -57,12 +57,12 @@ def test_futures_in_two_humps_are_read_as_both_shapes_of_wear():
 
 @pytest.mark.quick
 def test_the_closed_form_distance_is_numpys_inverse_and_determinant():
-    """evidence.mahalanobis (closed form for one and two features) against numpy's batched inverse and determinant,
-    on random covariances, strongly correlated ones among them; three features go to numpy."""
+    """evidence.mahalanobis (closed form for one, two and three features) against numpy's batched inverse and
+    determinant, on random covariances, strongly correlated ones among them; four features go to numpy."""
     from tuner.prognostics.evidence import mahalanobis
 
     rng = np.random.default_rng(5)
-    for d in (1, 2, 3):
+    for d in (1, 2, 3, 4):
         a = rng.normal(size=(500, d, d))
         cov = a @ a.transpose(0, 2, 1) + 1e-3 * np.eye(d)
         r = rng.normal(size=(500, d))

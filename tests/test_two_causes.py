@@ -143,13 +143,14 @@ def test_both_causes_at_once_give_a_remaining_life_that_covers_the_truth_at_its_
 
 def test_a_robot_whose_grip_and_battery_wear_together_is_forecast_from_both_and_the_order_does_not_matter():
     """Grip and the battery wearing together along drifts the benchmark does not use (0.95 → 0.5 and 6.1 → 4.0 V
-    over 50 laps, the robot starting above the twin's own voltage), read from every lap's time and line offset, no
-    alignment: neither alone explains the laps at half of the life, so ``history`` forecasts both at once, and its
-    90 % interval holds the lap the robot first fails on; the same laps in another order give the same forecast
-    bit for bit. One scenario, deterministic seeds: a calibrated interval misses one in ten, which would show here
-    as a failure to look into, not to re-seed away."""
+    over 50 laps, the robot starting above the twin's own voltage), read from every lap's time and the line's offset
+    and side, no alignment: neither alone explains the laps at half of the life, so ``history`` forecasts both at
+    once, and its 90 % interval holds the lap the robot first fails on; the same laps in another order give the
+    same forecast bit for bit. One scenario, deterministic seeds: a calibrated interval misses one in ten, which
+    would show here as a failure to look into, not to re-seed away."""
     from stand_in import robot_laps
     from tuner.history.report import causes_note, soonest
+    from tuner.history.twin_edge import FEATURES
     from tuner.history.two_causes import forecasts_of, joint_address
     from twin.core.digital_twin import DigitalTwin
 
@@ -166,7 +167,7 @@ def test_a_robot_whose_grip_and_battery_wear_together_is_forecast_from_both_and_
     both = fs[joint_address(("motion.mu", "motor.supply_voltage"))]
     assert all(fs[a].laps_to_failure is None for a in causes) and soonest(fs.values()) is both
     assert "wearing together" in both.statement and "together too" in causes_note(fs, [])
-    assert set(both.causes) == set(causes) and both.evidence["features"] == ["lap_time_s", "line_offset_m"]
+    assert set(both.causes) == set(causes) and both.evidence["features"] == list(FEATURES)
     lo, hi = both.interval
     assert lo <= first_failed - now <= (hi if hi is not None else math.inf), (both.statement, first_failed)
     shuffled = [laps[k] for k in np.random.default_rng(5).permutation(now + 1)]

@@ -6,15 +6,16 @@ for each part that wears (:data:`SERVICE`: grip, the battery) and each aligned p
    its own), then finely where the laps still finish
    and across the first failures (:mod:`tuner.history.twin_edge`): how likely a lap is to fail at each value (the
    failure model), and what a finished lap shows at each value, its lap time and the line's mean offset from the
-   sensor array's centre, with their scatter lap to lap (the observation model);
+   sensor array's centre and the side it runs on, with their scatter lap to lap (the observation model);
 2. the degradation state (the value, its rate, whether the wear speeds up) is estimated lap by lap by a particle
    filter from every finished lap on the gains in force, read through the observation model (the lap time and,
-   where the link carries the telemetry, the line offset: ``xte_mean_m`` in the history), every lap outcome,
+   where the link carries the telemetry, the line's offset and side: ``xte_mean_m`` and ``line_side_m`` in the
+   history, :data:`COLUMNS`), every lap outcome,
    finished or failed, and the alignments of laps before those (an alignment of laps the filter reads already is
    the same evidence again, so it is not counted twice; estimates from failed laps are never evidence);
-3. before that, a check that wear of this parameter alone explains the last laps: with two features a lap lies on
-   the twin's curve or off it (:func:`one_cause_misfit`); off it, another cause is at work (or more than one), and
-   the forecast for this parameter says so and gives no number;
+3. before that, a check that wear of this parameter alone explains the last laps: with two features or more a
+   lap lies on the twin's curve or off it (:func:`one_cause_misfit`); off it, another cause is at work (or more than
+   one), and the forecast for this parameter says so and gives no number;
 4. a Monte Carlo carries each particle forward, lap by lap, racing each lap against the failure model: the
    distribution of the laps to the first failure (remaining useful life), its median and 90 % interval.
 
@@ -53,10 +54,20 @@ MIN_MEASURED_LAPS = 2  # alignments at different laps, at least, for a forecast 
 MIN_TIMED_LAPS = 8  # … or this many finished laps on the gains in force, read through the twin
 EDGE_PRIOR = 0.05  # the robot's failure edge lies within this share of the way to it of the twin's (one sd)
 MISFIT_WINDOW = 8  # the last laps whose features are checked against wear of one parameter alone …
-CHI2_999_WINDOW = 26.12  # … χ² with MISFIT_WINDOW degrees of freedom: its 99.9 % point …
-# … so the most their mean misfit may be, per lap, for a robot scattering up to the filter's largest noise scale
-# more than the twin
-MISFIT_LIMIT = SCALE_PRIOR[1] ** 2 * CHI2_999_WINDOW / MISFIT_WINDOW
+MISFIT_QUANTILE = 0.999  # … against this quantile of their χ² (d − 1 degrees of freedom a lap, d features) …
+
+
+def misfit_limit(features: int) -> float:
+    """… so the most their mean misfit may be, per lap, for a robot scattering up to the filter's largest noise
+    scale more than the twin: the 99.9 % point of χ² with MISFIT_WINDOW·(features − 1) degrees of freedom, over
+    MISFIT_WINDOW, times that scale squared (26.12/8·9 = 29.4 for two features)."""
+    from scipy.stats import chi2
+
+    return SCALE_PRIOR[1] ** 2 * float(chi2.ppf(MISFIT_QUANTILE, MISFIT_WINDOW * (features - 1))) / MISFIT_WINDOW
+
+
+# each feature of the observation model (tuner.history.twin_edge.FEATURES) and the history's column that holds it
+COLUMNS = {"lap_time_s": "lap_time_s", "line_offset_m": "xte_mean_m", "line_side_m": "line_side_m"}
 # where a parameter needs service, and what to do: the worn end of the robust envelope
 SERVICE = {"motion.mu": (min(ROBUST_AXES["motion.mu"]), "replace the tyres"),
            "motor.supply_voltage": (min(ROBUST_AXES["motor.supply_voltage"]), "charge or replace the battery")}
@@ -211,6 +222,12 @@ def no_number(address: str, now_lap: int, statement: str, evidence: dict, note: 
                     tuple(band), (), note)
 
 
+def alone_explains(f: Forecast) -> bool | None:
+    """Does wear of ``f``'s parameter alone explain the last laps it read (their misfit within :func:`misfit_limit`
+    for the features read)? None: it did not check (one feature, or too few laps read)."""
+    return None if f.misfit is None else f.misfit <= misfit_limit(len(f.evidence["features"]))
+
+
 def one_cause_misfit(model: ObservationModel, obs: list[LapObservation], span: tuple[float, float]) -> float | None:
     """The mean over the last ``MISFIT_WINDOW`` observed laps of each one's misfit (its features' squared
     Mahalanobis distance from the nearest the twin gives at any value: about χ²(d − 1) when the parameter alone
@@ -221,24 +238,26 @@ def one_cause_misfit(model: ObservationModel, obs: list[LapObservation], span: t
     return float(np.mean([model.misfit(o.features, wide) for o in obs[-MISFIT_WINDOW:]]))
 
 
-def carries_offsets(laps: list[dict]) -> bool:
-    """Does the history hold the line's offset (``xte_mean_m``, from the robot's telemetry) for every finished lap?"""
-    return (any(r.get("xte_mean_m") is not None for r in laps)
-            and all(r.get("xte_mean_m") is not None for r in laps if r.get("completed")))
+def carried(laps: list[dict], names: tuple[str, ...] = tuple(COLUMNS)) -> tuple[str, ...]:
+    """The features of ``names`` (the lap time first) that the history holds for every finished lap (the line's
+    offset and side come from the robot's telemetry: a robot without it, or laps stored before the side was, have
+    the lap time alone, or the lap time and the offset)."""
+    done = [r for r in laps if r.get("completed")]
+    return tuple(n for k, n in enumerate(names) if k == 0 or (done and all(r.get(COLUMNS[n]) is not None
+                                                                          for r in done)))
 
 
-def observations_of(laps: list[dict], gains: dict, now_lap: int, offset: bool) -> list[LapObservation]:
-    """What each finished, plausible lap on ``gains`` up to ``now_lap`` shows: its lap time and, with ``offset``,
-    the line's mean offset from the array's centre (the history's ``xte_mean_m``, from the robot's telemetry)."""
+def observations_of(laps: list[dict], gains: dict, now_lap: int,
+                    names: tuple[str, ...] = ("lap_time_s",)) -> list[LapObservation]:
+    """What each finished, plausible lap on ``gains`` up to ``now_lap`` shows: its features ``names`` (the history's
+    columns :data:`COLUMNS`), a lap without one of them left out."""
     out = []
     for r in laps:
         if (r.get("completed") and r.get("lap_time_s") is not None and not r.get("implausible")
                 and int(r["n"]) <= now_lap and same_gains(r.get("gains"), gains)):
-            x = r.get("xte_mean_m")
-            if offset and x is None:
-                continue
-            out.append(LapObservation(int(r["n"]), (float(r["lap_time_s"]), float(x)) if offset else
-                                      (float(r["lap_time_s"]),)))
+            x = [r.get(COLUMNS[n]) for n in names]
+            if all(v is not None for v in x):
+                out.append(LapObservation(int(r["n"]), tuple(float(v) for v in x)))
     return sorted(out, key=lambda o: (o.lap, o.features))  # in lap order, whatever order the rows came in
 
 
@@ -261,7 +280,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     p = twin.space.parameter(address)
     ms = [m for m in measurements_of(alignments, address) if m.lap <= now_lap]
     outs = sorted((o for o in outcomes_of(laps, gains) if o.lap <= now_lap), key=lambda o: (o.lap, o.failed))
-    timed = observations_of(laps, gains, now_lap, offset=False)
+    timed = observations_of(laps, gains, now_lap)
     evidence = {"alignments": len(ms), "laps": len(outs), "failed": sum(o.failed for o in outs),
                 "timed_laps": len(timed)}
     service = SERVICE.get(address)
@@ -295,21 +314,20 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
             raced=(start, end), laps=raced)
     model = edge.observation
     if model is not None:
-        offset = carries_offsets(laps)
-        obs = observations_of(laps, gains, now_lap, offset) if offset else timed
-        model = model if offset else model.lap_time_only()
-        obs = [o for o in obs if model.reads(o.features)]
+        model = model.subset(carried(laps, model.names))
+        obs = [o for o in observations_of(laps, gains, now_lap, model.names) if model.reads(o.features)]
     else:
         obs = []
     if len(obs) < MIN_TIMED_LAPS:
         obs = []
     misfit = one_cause_misfit(model, obs, (min(start, end), max(start, end))) if obs else None
-    if misfit is not None and misfit > MISFIT_LIMIT:
+    evidence["features"] = list(model.names) if obs else []
+    if misfit is not None and misfit > misfit_limit(len(model.names)):
         return dataclasses.replace(
             no_number(address, now_lap, f"the robot's last {MISFIT_WINDOW} laps changed in a way wear of {address} "
-                       f"alone does not explain (their {' and '.join(model.names)} disagree: {misfit:.3g} against "
-                       f"at most {MISFIT_LIMIT:.3g}): another cause is at work, or more than one; no number for "
-                       f"{address}", evidence, "not explained by one cause"),
+                       f"alone does not explain (their {', '.join(model.names)} disagree: {misfit:.3g} against at "
+                       f"most {misfit_limit(len(model.names)):.3g}): another cause is at work, or more than one; no "
+                       f"number for {address}", evidence, "not explained by one cause"),
             raced=(start, end), laps=raced, failing_value=failure.threshold, misfit=misfit)
     # no lap counted twice: an alignment measured lap times the observations hold already, so only alignments of
     # laps before the first observed lap are evidence beside them
@@ -335,7 +353,6 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
     lo, med, hi = state.quantiles()
     evidence["observed_laps"] = len(obs)
     evidence["alignments_used"] = len(kept)  # those of laps before the first lap read
-    evidence["features"] = list(model.names) if obs else []
     advice: list[str] = []
     if already:
         statement = f"the gains in force already fail (the robot's last lap, {now_lap}, did)"

@@ -14,7 +14,7 @@ import os
 
 from tuner.history import schema as s
 from tuner.history.store import History
-from twin.telemetry.laps import RobotLap, line_offsets_m
+from twin.telemetry.laps import RobotLap, line_offsets_m, line_sides_m
 
 DEFAULT_PITCH_M = 0.009525  # QTR-8's, when the journal does not say
 CHANGE_STATUS = {"send": "sent", "ack": "acked", "nak": "nak", "silent": "silent", "in_force": "in_force",
@@ -26,12 +26,13 @@ def robot_name(robot: str | None, log_path: str) -> str:
     return robot or f"unnamed@{os.path.basename(log_path)}"[:64]
 
 
-def cross_track(lap: RobotLap, pitch_m: float) -> tuple[float | None, float | None]:
-    """(max, mean) |offset| of the line from the array's centre [m], from the lap's line positions."""
+def cross_track(lap: RobotLap, pitch_m: float) -> tuple[float | None, float | None, float | None]:
+    """(max |offset|, mean |offset|, mean signed offset) of the line from the array's centre [m], from the lap's line
+    positions (the twin reads its own laps the same way: :func:`tuner.history.twin_edge.lap_features`)."""
     if not len(lap.pos):
-        return None, None
+        return None, None, None
     offset = line_offsets_m(lap.pos, lap.sensors, pitch_m)
-    return float(offset.max()), float(offset.mean())
+    return float(offset.max()), float(offset.mean()), float(line_sides_m(lap.pos, lap.sensors, pitch_m).mean())
 
 
 def log_key(log_id: str) -> str:
@@ -73,11 +74,11 @@ class LogIngest:
         twin_side = twin_side or {}
         when = twin_side.get("time")
         run_id, robot_id = self._run(c, lap.robot, when)
-        xmax, xmean = cross_track(lap, self.pitch)
+        xmax, xmean, side = cross_track(lap, self.pitch)
         History.put(c, s.laps, f"{self.key}#lap{lap.index}", run_id=run_id, robot_id=robot_id, lap=lap.index,
                     time=when, completed=lap.lap_time_s is not None, lap_time_s=lap.lap_time_s, failure=lap.failure,
                     implausible=lap.implausible, energy_j=None, xte_max_m=xmax, xte_mean_m=xmean,
-                    gains_seq=lap.gains_seq, gains=twin_side.get("gains"),
+                    line_side_m=side, gains_seq=lap.gains_seq, gains=twin_side.get("gains"),
                     twin_lap_time_s=twin_side.get("twin_lap_time_s"), discrepancy=twin_side.get("discrepancy"),
                     values=twin_side.get("value"))
 

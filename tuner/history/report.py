@@ -14,8 +14,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from tuner.history import schema as s
-from tuner.history.forecast import MISFIT_LIMIT, SERVICE, STILL_RACING
-from tuner.history.twin_edge import FEATURES
+from tuner.history.forecast import SERVICE, STILL_RACING, alone_explains
 from tuner.history.store import History
 from tuner.history.trend import trend_of
 from tuner.history.two_causes import forecasts_of, joint_address
@@ -125,13 +124,15 @@ def causes_note(forecasts: dict, aligned: list[dict]) -> str:
         said += ("; the laps carry one feature (the lap time), which any one cause explains: the evidence cannot "
                  "tell them apart")
     else:
-        fits = sorted(a for a, m in checked.items() if m <= MISFIT_LIMIT)
+        fits = sorted(a for a in checked if alone_explains(forecasts[a]))
+        names = forecasts[next(iter(checked))].evidence["features"]
+        read = f"{', '.join(names[:-1])} and {names[-1]}"
         if not fits:
-            said += (f"; no one of them alone explains the last laps' {' and '.join(FEATURES)} together: more than "
+            said += (f"; no one of them alone explains the last laps' {read} together: more than "
                      "one cause is at work (or another)")
             said += (f", so it tracks {' and '.join(worn)} together too" if both else ": no number")
         elif len(fits) == 1:
-            said += f"; only {fits[0]} alone explains the last laps' {' and '.join(FEATURES)} together"
+            said += f"; only {fits[0]} alone explains the last laps' {read} together"
         else:
             said += f"; {', '.join(fits)} each explain the last laps alike: the evidence cannot tell them apart"
     if unsure:

@@ -70,6 +70,7 @@ laps = _of_a_run(
     sa.Column("energy_j", sa.Float),
     sa.Column("xte_max_m", sa.Float),
     sa.Column("xte_mean_m", sa.Float),
+    sa.Column("line_side_m", sa.Float),  # the line's mean signed offset from the array's centre (+ its last sensor)
     sa.Column("gains_seq", sa.Integer),
     sa.Column("gains", sa.JSON),
     sa.Column("twin_lap_time_s", sa.Float),

@@ -12,10 +12,10 @@ laps:
 * how well a lap time pins the parameter: the mean lap time's slope over the ladder's values before the edge
   [s per unit], and the scatter of a lap time around it over noise seeds [s]; an alignment on n laps then knows
   the parameter to about scatter/√n/|slope|, whatever its own consistent interval says;
-* what a finished lap shows at each value (:class:`tuner.prognostics.ObservationModel`): the mean lap time and the
-  mean offset of the line from the sensor array's centre (what the robot's telemetry gives, read the same way:
-  :func:`line_offset_m`) over the values raced before the edge (the first value where most laps fail), from their
-  finished laps, and their covariance over noise seeds.
+* what a finished lap shows at each value (:class:`tuner.prognostics.ObservationModel`): the mean lap time, the
+  mean |offset| of the line from the sensor array's centre and its mean signed offset, the side it runs on (what the
+  robot's telemetry gives, read the same way: :func:`lap_features`) over the values raced before the edge (the first
+  value where most laps fail), from their finished laps, and their covariance over noise seeds.
 """
 
 from __future__ import annotations
@@ -38,13 +38,18 @@ from tuner.prognostics.evidence import SLOW
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
 from twin.core.lap import LapLimits
-from twin.telemetry.laps import line_offsets_m
+from twin.telemetry.laps import line_offsets_m, line_sides_m
 
 LADDER = 12  # values raced from the least worn measured value to the end of the range, one batch
 REFINE = 8  # then across the first failures, and …
 DENSE = 3  # … this many times as finely as the ladder before them, one more batch
 SEEDS = 5  # noise seeds per value
-FEATURES = ("lap_time_s", "line_offset_m")  # what a finished lap shows, in the observation model's order
+# what a finished lap shows, in the observation model's order: its lap time [s], the mean |offset| of the line from
+# the array's centre [m] and its mean signed offset [m] (a tyre that grips less runs wider in a bend: the line lies
+# further towards its inside). Of the telemetry's summaries of a lap tried beside the lap time (the |offset|'s RMS
+# and quantiles, the offset in time bins along the lap, the wheels' speeds and turns), the side pinned grip best,
+# and from the line position every robot sends, whatever its encoders or sample rate (docs/models.md, issue 35)
+FEATURES = ("lap_time_s", "line_offset_m", "line_side_m")
 EDGE_GRID, WIDTH_GRID = 241, 40  # the maximum-likelihood grid
 
 
@@ -73,21 +78,34 @@ def line_offset_m(position: np.ndarray, sensors: int, pitch_m: float) -> float:
     return float(np.mean(line_offsets_m(position, sensors, pitch_m)))
 
 
+def line_side_m(position: np.ndarray, sensors: int, pitch_m: float) -> float:
+    """The mean signed offset of the line from the sensor array's centre [m] (+ towards its last sensor): the side
+    the line runs on, read as :func:`line_offset_m` (:func:`tuner.history.ingest.cross_track`)."""
+    return float(np.mean(line_sides_m(position, sensors, pitch_m)))
+
+
+def lap_features(lap, pitch_m: float) -> tuple[float, ...]:
+    """What a finished twin lap (a :class:`twin.core.lap.LapResult` with its trace) shows, in :data:`FEATURES`'
+    order."""
+    position, sensors = lap.trace.column("position"), lap.trace.count
+    return (float(lap.lap_time_s), line_offset_m(position, sensors, pitch_m), line_side_m(position, sensors, pitch_m))
+
+
 def _race(twin, gains, address, values, seeds, seed, limits, first=0):
-    """[(value, [(failed, lap time, line offset) per seed])]: value j's laps on seeds of their own, seed +
-    (first + j)·seeds onwards (a later batch passes the number of values raced before it as ``first``)."""
+    """[(value, [(failed, features or None) per seed])]: value j's laps on seeds of their own, seed +
+    (first + j)·seeds onwards (a later batch passes the number of values raced before it as ``first``); a finished
+    lap's features (:data:`FEATURES`) as the robot's telemetry gives them (:func:`lap_features`)."""
     laps = run_laps(twin, [{**gains, address: float(v)} for v in values for _ in range(seeds)],
                     seed=[seed + (first + j) * seeds + k for j in range(len(values)) for k in range(seeds)],
                     limits=limits, keep_traces=True)
     pitch = float(twin.space.get("sensor.pitch"))
-    seen = [(not r.completed, r.lap_time_s,
-             line_offset_m(r.trace.column("position"), r.trace.count, pitch) if r.completed else None) for r in laps]
-    del laps  # the traces: only the offset is kept
+    seen = [(not r.completed, lap_features(r, pitch) if r.completed else None) for r in laps]
+    del laps  # the traces: only the features are kept
     return [(float(v), seen[i * seeds:(i + 1) * seeds]) for i, v in enumerate(values)]
 
 
 def _mostly_fail(laps) -> bool:
-    return 2 * sum(f for f, _, _ in laps) >= len(laps)
+    return 2 * sum(f for f, _ in laps) >= len(laps)
 
 
 def observation_model(rows) -> ObservationModel | None:
@@ -101,7 +119,7 @@ def observation_model(rows) -> ObservationModel | None:
     smooth curve through them all (:func:`smooth_means`)."""
     done = []
     for v, laps in rows:
-        finished = [(t, x) for f, t, x in laps if not f]
+        finished = [x for f, x in laps if not f]
         if _mostly_fail(laps) or len(finished) < 2:
             break
         y = np.array(finished)
@@ -155,7 +173,7 @@ def fit_failure(points: list[tuple[float, bool]], direction: float, span: float)
 def _lap_times(rows) -> tuple[float | None, float | None]:
     """(slope [s per unit], scatter [s]) over the finished laps of the values ``rows`` holds (those before the
     edge)."""
-    done = [(v, [t for f, t, _ in laps if not f]) for v, laps in rows]
+    done = [(v, [x[0] for f, x in laps if not f]) for v, laps in rows]
     done = [(v, ts) for v, ts in done if ts]
     if len(done) < 2:
         return None, None
@@ -169,7 +187,7 @@ def _lap_times(rows) -> tuple[float | None, float | None]:
 _RECENT: dict = {}  # the last few races, by what decides them: a forecast lap after lap races the same ladder
 RECENT = 8
 RACES = "twin-edges"  # their folder in the cache (lf_common.cache.cache_dir()), one verified entry per race
-STORE_FORMAT = 2  # 2: the twin's values as its laps run them (race_record)
+STORE_FORMAT = 3  # 2: the twin's values as its laps run them (race_record); 3: the line's side as a feature
 
 
 def forget_races() -> None:
@@ -275,7 +293,7 @@ def twin_edge(twin: DigitalTwin, gains: dict, address: str, start: float, end: f
 def _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds) -> TwinEdge:
     p = twin.space.parameter(address)
     rows = _race(twin, gains, address, np.linspace(start, end, LADDER), seeds, seed, limits)
-    any_fail = [any(f for f, _, _ in laps) for _, laps in rows]
+    any_fail = [any(f for f, _ in laps) for _, laps in rows]
     # the edge: the first of the ladder's values where most laps fail (else where one does); a lap failing now and
     # then before it is the failure model's tail, not the edge
     mostly = [_mostly_fail(laps) for _, laps in rows]
@@ -293,7 +311,7 @@ def _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds)
         rows += _race(twin, gains, address, np.concatenate([fine, dense]), seeds, seed, limits, first=len(rows))
     rows.sort(key=lambda r: direction * r[0])  # from the least worn
     laps = sum(len(l) for _, l in rows)
-    fails = [any(f for f, _, _ in l) for _, l in rows]
+    fails = [any(f for f, _ in l) for _, l in rows]
     # what a finished lap shows: from every value before the edge, the refined ones too (the ladder's
     # own, should a refined value fail early)
     observation = observation_model(rows) or observation_model(before)
@@ -305,5 +323,5 @@ def _twin_edge(twin, gains, address, start, end, direction, seed, limits, seeds)
     # describe and a forecast of the first failure does not need
     mostly = [_mostly_fail(l) for _, l in rows]
     upto = mostly.index(True) + 1 if any(mostly) else len(rows)
-    failure = fit_failure([(v, f) for v, l in rows[:upto] for f, _, _ in l], direction, float(p.upper - p.lower))
+    failure = fit_failure([(v, f) for v, l in rows[:upto] for f, _ in l], direction, float(p.upper - p.lower))
     return TwinEdge(failure, rows[k - 1][0] if k else None, rows[k][0], slope, sd, (start, end), laps, observation)

@@ -1,6 +1,6 @@
 """Two causes at once: when no one part's wear explains the robot's last laps (:func:`tuner.history.forecast.
-one_cause_misfit`: with the lap time and the line's offset, grip and battery leave different marks), the forecast
-tracks both parts that wear together (:data:`tuner.history.forecast.SERVICE`: grip and the battery):
+one_cause_misfit`: with the lap time and the line's offset and side, grip and battery leave different marks), the
+forecast tracks both parts that wear together (:data:`tuner.history.forecast.SERVICE`: grip and the battery):
 
 1. the twin races the gains in force along the first cause's ladder at ``ROWS`` values of the second, from the
    twin's own value to where the gains fail on the second alone (each row a race of :mod:`tuner.history.twin_edge`,
@@ -23,8 +23,8 @@ import time
 import numpy as np
 
 from lf_common.cache import StillBuilding
-from tuner.history.forecast import (EDGE_PRIOR, LAP_TIMEOUT_S, MIN_TIMED_LAPS, MISFIT_LIMIT, SERVICE, STILL_RACING,
-                                    Forecast, carries_offsets, forecast_failure, no_number, observations_of,
+from tuner.history.forecast import (EDGE_PRIOR, LAP_TIMEOUT_S, MIN_TIMED_LAPS, SERVICE, STILL_RACING, Forecast,
+                                    alone_explains, carried, forecast_failure, no_number, observations_of,
                                     outcomes_of, race_range, service_direction)
 from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
 from tuner.history.twin_edge import twin_edge
@@ -116,15 +116,16 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
                         seed: int = 0, lap_timeout_s: float = LAP_TIMEOUT_S, filter_seed: int | None = None,
                         seeds: int = EDGE_SEEDS, race_wait_s: float | None = None) -> Forecast:
     """When the ``gains`` in force first fail with both ``causes`` wearing, from the robot's ``laps`` up to
-    ``now_lap`` (each with its lap time and the line's mean offset: with the lap time alone any one cause explains
-    the laps, and the two cannot be told apart). ``race_wait_s``: as :func:`tuner.history.forecast_failure`'s."""
+    ``now_lap`` (each with its lap time and the line's offset and side: with the lap time alone any one cause
+    explains the laps, and the two cannot be told apart). ``race_wait_s``: as
+    :func:`tuner.history.forecast_failure`'s."""
     filter_seed = seed if filter_seed is None else filter_seed
     address = joint_address(causes)
     outs = sorted((o for o in outcomes_of(laps, gains) if o.lap <= now_lap), key=lambda o: (o.lap, o.failed))
-    offset = carries_offsets(laps)
-    obs = observations_of(laps, gains, now_lap, offset=True) if offset else []
+    names = carried(laps)
+    obs = observations_of(laps, gains, now_lap, names) if len(names) > 1 else []
     evidence = {"alignments": 0, "laps": len(outs), "failed": sum(o.failed for o in outs), "timed_laps": len(obs)}
-    if not offset:
+    if len(names) < 2:
         return no_number(address, now_lap, f"the laps carry the lap time alone, which either of {causes[0]} and "
                           f"{causes[1]} explains: the two cannot be told apart, no number for both at once",
                           evidence, "too little evidence")
@@ -140,7 +141,8 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
             address, now_lap, f"the twin's races of {causes[0]} at {len(plane.rows)} values of {causes[1]} give "
             f"{'no failure edge' if plane.failure is None else 'no regular laps'} on two of them or more: no number "
             "for both at once", evidence, "no plane"), laps=plane.laps)
-    obs = [o for o in obs if plane.observation.reads(o.features)]
+    seen = plane.observation.subset(names)
+    obs = [o for o in obs if seen.reads(o.features)]
     if len(obs) < MIN_TIMED_LAPS:
         return dataclasses.replace(no_number(
             address, now_lap, f"too little evidence to forecast {causes[0]} and {causes[1]} at once: {len(obs)} laps "
@@ -150,10 +152,10 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
     lo, hi = np.minimum(own, ends) - 0.5 * np.array(plane.spans), np.maximum(own, ends) + 0.5 * np.array(plane.spans)
     settings = FilterSettings(span=plane.spans, value_range=tuple(zip(lo, hi)),
                               one_way=tuple(plane.failure.directions), edge_prior=EDGE_PRIOR * plane.spans[0])
-    state = estimate((), outs, now_lap, settings, plane.failure, filter_seed, obs, plane.observation)
+    state = estimate((), outs, now_lap, settings, plane.failure, filter_seed, obs, seen)
     limits = np.array([SERVICE[c][0] for c in causes])
     life = remaining_life(state, plane.failure, settings.q, filter_seed + 1, service_limit=limits)
-    evidence.update(observed_laps=len(obs), alignments_used=0, features=list(plane.observation.names))
+    evidence.update(observed_laps=len(obs), alignments_used=0, features=list(names))
     told = abs(float(np.corrcoef(state.value[:, 0], state.value[:, 1])[0, 1])) < TELLS_APART
     per = {c: {"value_now": state.quantiles(dim=k)[1], "value_band": state.quantiles((0.05, 0.95), dim=k),
                "rate": state.rate_quantiles(dim=k), "band": [(b[0], *b[1 + 3 * k:4 + 3 * k]) for b in state.band]}
@@ -183,7 +185,7 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
             advice.append(said)
     now = "; ".join(f"{c} is {p['value_now']:.4g} now (90 % {p['value_band'][0]:.4g}–{p['value_band'][1]:.4g})"
                     for c, p in per.items())
-    note = (f"{now}, from {len(obs)} laps read through the twin ({', '.join(plane.observation.names)}) and "
+    note = (f"{now}, from {len(obs)} laps read through the twin ({', '.join(names)}) and "
             f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "
             f"laps fail at {causes[0]} {failing_now:.4g} with {causes[1]} at its value now (raced at {causes[1]} "
             f"{', '.join(f'{w:.4g}' for w in plane.rows)})")
@@ -206,8 +208,7 @@ def forecasts_of(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: l
         out[a] = forecast_failure(twin, gains, alignments, laps, a, now_lap, seed=seed, filter_seed=filter_seed,
                                   record=record, race_wait_s=left(), race_here=not waiting)
     worn = tuple(sorted(SERVICE))
-    misfits = [out[a].misfit if a in out else None for a in worn]
-    if len(worn) == 2 and all(m is not None and m > MISFIT_LIMIT for m in misfits):
+    if len(worn) == 2 and all(a in out and alone_explains(out[a]) is False for a in worn):
         out[joint_address(worn)] = forecast_two_causes(twin, gains, laps, worn, now_lap, seed=seed,
                                                        filter_seed=filter_seed, race_wait_s=left())
     return out

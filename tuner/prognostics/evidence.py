@@ -21,9 +21,10 @@ SQRT2 = math.sqrt(2.0)
 
 
 def mahalanobis(r: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(rᵀ·cov⁻¹·r, log det cov) for each of n residuals ``r`` (n, d) and covariances ``cov`` (n, d, d). One or two
-    features (lap time, line offset) in closed form: the filter asks this of every particle at every lap, and
-    numpy's batched inverse and determinant of 2×2 matrices took most of its time; more features by numpy."""
+    """(rᵀ·cov⁻¹·r, log det cov) for each of n residuals ``r`` (n, d) and covariances ``cov`` (n, d, d). Up to three
+    features (lap time, the line's offset and side) in closed form (cofactors): the filter asks this of every
+    particle at every lap, and numpy's batched inverse and determinant of 2×2 matrices took most of its time; more
+    features by numpy."""
     d = r.shape[1]
     if d == 1:
         c = cov[:, 0, 0]
@@ -33,6 +34,15 @@ def mahalanobis(r: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]
         det = a * c - b * b
         x, y = r[:, 0], r[:, 1]
         return (x * x * c - 2.0 * x * y * b + y * y * a) / det, np.log(det)
+    if d == 3:
+        a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 0, 2]
+        e, f, g = cov[:, 1, 1], cov[:, 1, 2], cov[:, 2, 2]
+        ca, cb, cc = e * g - f * f, c * f - b * g, b * f - c * e  # cofactors: the adjugate's first row …
+        ce, cf, cg = a * g - c * c, b * c - a * f, a * e - b * b  # … and the rest of its upper triangle
+        det = a * ca + b * cb + c * cc
+        x, y, z = r[:, 0], r[:, 1], r[:, 2]
+        q = x * x * ca + y * y * ce + z * z * cg + 2.0 * (x * y * cb + x * z * cc + y * z * cf)
+        return q / det, np.log(det)
     return np.einsum("ni,nij,nj->n", r, np.linalg.inv(cov), r), np.log(np.linalg.det(cov))
 
 
@@ -92,7 +102,7 @@ def measurement_sigma(value: float, interval: tuple[float, float] | None, floor_
 class LapObservation:
     """What one finished lap of the robot, run with the gains in force, shows: its ``features`` (in the order of the
     :class:`ObservationModel`'s ``names``: the lap time [s] and, where the link carries the telemetry, the mean
-    offset of the line from the sensor array's centre [m])."""
+    |offset| of the line from the sensor array's centre and its mean signed offset [m])."""
     lap: int
     features: tuple[float, ...]
 
@@ -178,5 +188,7 @@ class ObservationModel:
         """How far a lap's features lie from anything the parameter alone gives in ``span`` (:meth:`nearest`)."""
         return self.nearest(features, span)[1]
 
-    def lap_time_only(self) -> "ObservationModel":
-        return ObservationModel(self.names[:1], self.values, self.means[:, :1], self.covariances[:, :1, :1])
+    def subset(self, names: tuple[str, ...]) -> "ObservationModel":
+        """The model of the features ``names`` alone (some of its own, in any order)."""
+        k = [self.names.index(n) for n in names]
+        return ObservationModel(tuple(names), self.values, self.means[:, k], self.covariances[:, k][:, :, k])

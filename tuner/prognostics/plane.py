@@ -116,6 +116,10 @@ class PlaneObservation:
     def names(self) -> tuple[str, ...]:
         return self.models[0].names
 
+    def subset(self, names: tuple[str, ...]) -> "PlaneObservation":
+        """The plane's model of the features ``names`` alone (:meth:`ObservationModel.subset`)."""
+        return dataclasses.replace(self, models=tuple(m.subset(names) for m in self.models))
+
     def _blend(self, x: np.ndarray, of, smooth: bool) -> np.ndarray:
         """Each row read at the same distance from its own failure edge as ``x`` from the plane's (the edge at w
         on the cubic across the rows' edges, as :meth:`PlaneFailure.threshold`), then blended across rows: near

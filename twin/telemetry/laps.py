@@ -18,10 +18,15 @@ import numpy as np
 from twin.telemetry.wire import Event, Header, Sample
 
 
+def line_sides_m(position: np.ndarray, sensors: int, pitch_m: float) -> np.ndarray:
+    """The signed offset of the line from the sensor array's centre [m] at each line position (0 … (sensors − 1)·1000
+    across the array), + towards the array's last sensor: what a robot's telemetry and the twin's trace say alike."""
+    return (np.asarray(position, float) - (sensors - 1) * 500.0) / 1000.0 * pitch_m
+
+
 def line_offsets_m(position: np.ndarray, sensors: int, pitch_m: float) -> np.ndarray:
-    """|offset| of the line from the sensor array's centre [m] at each line position (0 … (sensors − 1)·1000
-    across the array): what a robot's telemetry and the twin's trace say alike."""
-    return np.abs(np.asarray(position, float) - (sensors - 1) * 500.0) / 1000.0 * pitch_m
+    """|offset| of the line from the sensor array's centre [m] at each line position (:func:`line_sides_m`)."""
+    return np.abs(line_sides_m(position, sensors, pitch_m))
 
 
 @dataclasses.dataclass

@@ -1,0 +1,79 @@
+"""What a finished lap shows the forecast (tuner.history.twin_edge.FEATURES): the lap time, the line's mean |offset|
+from the sensor array's centre and its mean signed offset (the side it runs on), read alike from the robot's
+telemetry (tuner.history.ingest.cross_track, on the wire's lines) and from the twin's own trace
+(tuner.history.twin_edge.lap_features); the history's columns that hold them; a forecast reads the features every
+lap it reads carries; and the misfit's limit against the χ² table."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tuner.history.forecast import COLUMNS, carried, misfit_limit, observations_of
+from tuner.history.ingest import cross_track
+from tuner.history.twin_edge import FEATURES, lap_features
+from tuner.prognostics import ObservationModel
+from twin.core.closed_loop import run_laps
+from twin.core.digital_twin import DigitalTwin
+from twin.link.emulator import lap_records
+from twin.telemetry.laps import LapAssembler, line_sides_m
+from twin.telemetry.wire import decode
+
+from reference_gains import PLAIN_HELD
+
+pytestmark = pytest.mark.quick
+LAPS, SEED = 6, 300
+G = {"control.kp": 20.0}  # the gains the laps below ran on
+
+
+def test_the_robots_telemetry_and_the_twins_trace_read_a_lap_alike():
+    """The emulated robot (the twin with hidden values) sends a sample every 2nd control tick, its times in
+    milliseconds and its line positions as integers; the twin reads its own lap from every tick. The same laps (the
+    same noise seeds) read both ways differ by less than a tenth of the laps' own scatter from one seed to the next,
+    the scatter the observation model holds (and the lap time by the wire's millisecond)."""
+    twin = DigitalTwin()
+    twin.update({**PLAIN_HELD, "motion.mu": 0.8})
+    pitch = float(twin.space.get("sensor.pitch"))
+    assembler = LapAssembler()
+    robot = [lap for _, line in lap_records(twin, SEED, 2, LAPS) if (lap := assembler.feed(decode(line.strip())))]
+    read = np.array([(lap.lap_time_s, *cross_track(lap, pitch)[1:]) for lap in robot])
+    own = np.array([lap_features(r, pitch) for r in run_laps(twin, [{}] * LAPS, seed=[SEED + k for k in range(LAPS)])])
+    assert read.shape == own.shape == (LAPS, len(FEATURES))
+    assert np.abs(read[:, 0] - own[:, 0]).max() <= 1e-3
+    scatter = own.std(axis=0, ddof=1)
+    assert np.all(scatter[1:] > 0) and np.all(np.abs(read - own)[:, 1:] < 0.1 * scatter[1:]), (read - own, scatter)
+
+
+def test_the_lines_side_is_signed_towards_the_last_sensor():
+    """An 8-sensor array (positions 0 … 7000) at a 10 mm pitch: the line under the last sensor lies 35 mm to that
+    side of the centre, under the first 35 mm to the other."""
+    assert line_sides_m(np.array([7000.0, 0.0, 3500.0, 4000.0]), 8, 0.01) == pytest.approx([0.035, -0.035, 0.0, 0.005])
+
+
+def test_a_forecast_reads_the_features_every_lap_carries():
+    """Each feature lives in the history's column COLUMNS names; a feature some finished lap lacks (laps stored
+    before the line's side was, a robot without telemetry) is not read, and the observation model is cut to the
+    rest, in their order."""
+    assert set(COLUMNS) == set(FEATURES) and COLUMNS["lap_time_s"] == "lap_time_s"
+    full = [{"n": k, "completed": True, "gains": G, "lap_time_s": 7.0 + k, "xte_mean_m": 0.004, "line_side_m": -0.001}
+            for k in range(3)]
+    unsided = {"n": 3, "completed": True, "gains": G, "lap_time_s": 7.5, "xte_mean_m": 0.004, "line_side_m": None}
+    failed = {"n": 4, "completed": False, "gains": G, "lap_time_s": None, "xte_mean_m": None, "line_side_m": None}
+    older = [*full, unsided, failed]
+    bare = [{**r, "xte_mean_m": None, "line_side_m": None} for r in full]
+    assert carried(full) == FEATURES and carried(older) == ("lap_time_s", "line_offset_m")
+    assert carried(bare) == ("lap_time_s",) and carried([]) == ("lap_time_s",)
+    read = observations_of(older, G, 4, carried(older))
+    assert [o.features for o in read] == [(7.0 + k, 0.004) for k in range(3)] + [(7.5, 0.004)]
+    model = ObservationModel(FEATURES, np.array([0.7, 0.8]), np.arange(6.0).reshape(2, 3),
+                             np.arange(18.0).reshape(2, 3, 3))
+    cut = model.subset(("lap_time_s", "line_side_m"))
+    assert cut.names == ("lap_time_s", "line_side_m") and cut.means.tolist() == [[0, 2], [3, 5]]
+    assert cut.covariances.tolist() == [[[0, 2], [6, 8]], [[9, 11], [15, 17]]]
+
+
+def test_the_misfits_limit_is_the_chi2_tables():
+    """Eight laps' mean misfit, each χ² with d − 1 degrees of freedom: its 99.9 % point over 8, at the filter's
+    largest noise scale (3, squared): χ²(8) 26.12 and χ²(16) 39.25 from the table (Abramowitz and Stegun 26.8)."""
+    assert misfit_limit(2) == pytest.approx(9 * 26.12 / 8, rel=1e-3)
+    assert misfit_limit(3) == pytest.approx(9 * 39.25 / 8, rel=1e-3)

@@ -1,0 +1,51 @@
+"""The field's metrics over a prognostics benchmark's robots (tests/prognostic_metrics.py) against a hand
+calculation of Saxena et al.'s (2010) definitions on two made-up robots."""
+
+from __future__ import annotations
+
+import pytest
+
+from prognostic_metrics import covered, metrics
+
+pytestmark = pytest.mark.quick
+
+
+def forecast(now, true_rul, median, lo, hi, at_point=True):
+    return {"now": now, "true_rul": true_rul, "median": median, "lo": lo, "hi": hi, "numbered": median is not None,
+            "at_point": at_point, "wall_s": 1.0}
+
+
+def test_the_metrics_are_the_definitions_worked_by_hand():
+    """Robot A fails at lap 40; forecast at laps 10, 20, 30 (true 30, 20, 10 laps left): medians 40, 22, 9, 90 %
+    intervals 20–35 (holds 30), 18–25 (holds 20), 10–open (holds 10). Robot B fails at lap 20; at 10 (true 10):
+    median 15, 12–18 (misses 10); at 15 (true 5): median 5, 4–6 (holds).
+
+    Coverage: 4 of 5; widths 15, 7, 6, 2 (the open one has none): median 6.5, one open-ended. α-λ (α 0.2, nearest half
+    of the life): A at lap 20, |22 − 20| = 2 ≤ 4: met; B at lap 10, |15 − 10| = 5 > 2: not: 1 of 2. Relative
+    accuracy there: 1 − 2/20 = 0.9 and 1 − 5/10 = 0.5: median 0.7. Horizon (within ±0.2 of the whole life, 8 laps
+    for A, 4 for B): A's errors 10, 2, 1: within from lap 20, (40 − 20)/40 = 0.5; B's 5, 0: within from lap 15,
+    (20 − 15)/20 = 0.25: median 0.375."""
+    a = {"first_failed_lap": 40, "forecasts": [forecast(10, 30, 40, 20, 35), forecast(20, 20, 22, 18, 25),
+                                               forecast(30, 10, 9, 10, None)]}
+    b = {"first_failed_lap": 20, "forecasts": [forecast(10, 10, 15, 12, 18), forecast(15, 5, 5, 4, 6)]}
+    m = metrics([a, b])
+    assert m["forecasts"] == 5 and m["without_a_number"] == 0 and m["coverage_90"] == 0.8
+    assert m["median_width_laps"] == 6.5 and m["open_ended"] == 1
+    assert m["alpha_lambda_met"] == 0.5 and m["relative_accuracy_median"] == pytest.approx(0.7)
+    assert m["prognostic_horizon_median"] == pytest.approx(0.375)
+    assert covered(forecast(1, 10, 10, None, None)) and not covered(forecast(1, 10, 10, 11, None))
+
+
+def test_the_twins_draws_are_counted_over_robot_and_draw():
+    """Two robots forecast at half of life on the twin's default draw and one more (``--race-seeds 1``): A (true
+    10 laps) 10 (8–12) and 13 (11–15); B (true 20) 20 (15–25) and 30 (26–34). α-λ (±0.2): 10 yes, 13 no (3 > 2),
+    20 yes, 30 no: 2 of 4; covered: yes, no (10 < 11), yes, no: 2 of 4; the medians' spread over the true life:
+    3/10 and 10/20, median 0.4, max 0.5."""
+    def drawn(true, *fs):
+        return {"first_failed_lap": 2 * true, "forecasts": [],
+                "race_seeds_at_half": {"now": true, "true_rul": true, "forecasts": [
+                    {"median": m, "lo": lo, "hi": hi} for m, lo, hi in fs]}}
+
+    m = metrics([drawn(10, (10, 8, 12), (13, 11, 15)), drawn(20, (20, 15, 25), (30, 26, 34))])
+    assert m["alpha_lambda_met_per_race_seed"] == 0.5 and m["coverage_90_at_half_per_race_seed"] == 0.5
+    assert m["race_seed_spread_median"] == pytest.approx(0.4) and m["race_seed_spread_max"] == pytest.approx(0.5)
