@@ -77,3 +77,34 @@ def test_the_misfits_limit_is_the_chi2_tables():
     largest noise scale (3, squared): χ²(8) 26.12 and χ²(16) 39.25 from the table (Abramowitz and Stegun 26.8)."""
     assert misfit_limit(2) == pytest.approx(9 * 26.12 / 8, rel=1e-3)
     assert misfit_limit(3) == pytest.approx(9 * 39.25 / 8, rel=1e-3)
+
+
+def test_a_history_from_before_the_side_keeps_its_laps_and_reads_them_without_it(tmp_path):
+    """A database at the migration before the line's side (0003) with a lap in it: opened by this version it is
+    upgraded (0004 adds ``line_side_m``), the lap is kept as it was, its side NULL, and a forecast reads its lap
+    time and |offset| (carried) until the log is rebuilt."""
+    import sqlalchemy as sa
+    from alembic import command
+
+    from tuner.history import History, schema
+    from tuner.history.store import _alembic_config, head
+
+    url = f"sqlite:///{tmp_path / 'old.sqlite'}"
+    engine = sa.create_engine(url)
+    with engine.begin() as c:
+        command.upgrade(_alembic_config(c), "0003")
+        c.exec_driver_sql("INSERT INTO lf_robots (id, name, kind) VALUES (1, 'bot', 'robot')")
+        c.exec_driver_sql("INSERT INTO lf_runs (id, robot_id, command, source) VALUES (1, 1, 'live', 'log:x#log:bot')")
+        c.exec_driver_sql("INSERT INTO lf_laps (run_id, robot_id, source, lap, completed, lap_time_s, xte_mean_m) "
+                          "VALUES (1, 1, 'log:x#lap0', 0, 1, 7.25, 0.0041)")
+        assert "line_side_m" not in {col["name"] for col in sa.inspect(c).get_columns("lf_laps")}
+    engine.dispose()
+    h = History(url)
+    try:
+        with h.engine.connect() as c:
+            assert c.execute(sa.text(f"SELECT version_num FROM {schema.VERSION_TABLE}")).scalar() == head()
+            rows = [dict(r._mapping) for r in c.execute(sa.select(schema.laps))]
+    finally:
+        h.close()
+    assert [(r["lap_time_s"], r["xte_mean_m"], r["line_side_m"]) for r in rows] == [(7.25, 0.0041, None)]
+    assert carried([{**rows[0], "completed": True}]) == ("lap_time_s", "line_offset_m")
