@@ -85,14 +85,18 @@ def test_a_history_from_before_the_side_keeps_its_laps_and_reads_them_without_it
     time and |offset| (carried) until the log is rebuilt."""
     import sqlalchemy as sa
     from alembic import command
+    from alembic.config import Config
 
     from tuner.history import History, schema
-    from tuner.history.store import _alembic_config, head
+    from tuner.history.store import MIGRATIONS, head
 
     url = f"sqlite:///{tmp_path / 'old.sqlite'}"
     engine = sa.create_engine(url)
     with engine.begin() as c:
-        command.upgrade(_alembic_config(c), "0003")
+        config = Config()  # the package's migrations, run on this connection as the history runs them
+        config.set_main_option("script_location", MIGRATIONS)
+        config.attributes["connection"] = c
+        command.upgrade(config, "0003")
         c.exec_driver_sql("INSERT INTO lf_robots (id, name, kind) VALUES (1, 'bot', 'robot')")
         c.exec_driver_sql("INSERT INTO lf_runs (id, robot_id, command, source) VALUES (1, 1, 'live', 'log:x#log:bot')")
         c.exec_driver_sql("INSERT INTO lf_laps (run_id, robot_id, source, lap, completed, lap_time_s, xte_mean_m) "
