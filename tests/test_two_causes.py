@@ -58,6 +58,13 @@ def test_the_plane_reads_its_rows_on_a_cubic_across_them_and_a_line_beyond():
         [norm.cdf(-1.0), norm.cdf(2.0)])
     assert failure.p_fail(np.array([[edge, 5.5]]), shift=np.array([0.01])) == pytest.approx([norm.cdf(1.0)])
     assert list(failure.direction) == [-1.0, -1.0]
+    # the edge's width is held beyond the outer rows (as the scatter is), its threshold goes on along the line
+    widening = PlaneFailure.of([(float(w), FailureModel(0.6 + 0.02 * (6 - w) ** 2, 0.01 * (w - 3), -1.0))
+                                for w in ROWS], -1.0)
+    below = 0.6 + 0.02 * 4 - (0.02 * 1 - 0.02 * 4)  # the line through rows 4 and 5, at 3
+    with np.errstate(over="raise", invalid="raise"):
+        assert widening.p_fail(np.array([[below + 0.01, 3.0], [0.5, -1e4], [0.5, 1e4]]))[0] == pytest.approx(
+            norm.cdf(-1.0))
     # a lap right on the plane at (0.75, 5.2) is found there (within the grid's step), and one lap pins u to
     # 1/√(Jᵀ Σ⁻¹ J)'s diagonal: lap time moves 2 s per unit of u and −(0.3·(6 − w)² − 0.1·(6 − w)) per unit of w
     u0, w0 = 0.75, 5.2

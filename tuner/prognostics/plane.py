@@ -51,7 +51,7 @@ def _weights(rows: np.ndarray, w: np.ndarray, smooth: bool = True) -> np.ndarray
 class PlaneFailure:
     """The gains in force fail a lap at (u, w) with probability Φ(d·(u − threshold(w) − shift)/width(w)): each row's
     edge along the first cause (``rows`` the second cause's values, ascending), between rows on a cubic across them
-    (:func:`_weights`). ``shift`` is
+    (:func:`_weights`), beyond them the threshold straight on and the width held. ``shift`` is
     the robot's edge against the twin's, in the first cause's unit. ``directions``: the way each part wears."""
     rows: np.ndarray
     thresholds: np.ndarray
@@ -83,9 +83,12 @@ class PlaneFailure:
         from scipy.special import ndtr
 
         x = np.asarray(x, float)
-        weights = _weights(self.rows, x[..., 1].ravel())
-        threshold = (weights @ self.thresholds).reshape(x.shape[:-1])
-        width = np.exp(weights @ np.log(self.widths)).reshape(x.shape[:-1])  # its logarithm: never negative
+        w = x[..., 1].ravel()
+        threshold = (_weights(self.rows, w) @ self.thresholds).reshape(x.shape[:-1])
+        # the width's logarithm (never negative) across the rows, held beyond them as the scatter is: on the line
+        # it shrank or grew without end, to overflow for a future that runs far past the outer rows
+        held = _weights(self.rows, np.clip(w, self.rows[0], self.rows[-1]))
+        width = np.exp(held @ np.log(self.widths)).reshape(x.shape[:-1])
         return ndtr(self.directions[0] * (x[..., 0] - threshold - shift) / width)
 
 
