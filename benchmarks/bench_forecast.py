@@ -74,7 +74,7 @@ from twin.link.emulator import Drift
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 from exact_posterior import exact_posterior  # noqa: E402  (an independent estimator of the filter's posterior)
-from prognostic_metrics import ALPHA, LAMBDA, metrics  # noqa: E402  (the field's metrics over these robots)
+from prognostic_metrics import ALPHA, LAMBDA, metrics, ready_within_a_lap  # noqa: E402  (the field's metrics)
 from reference_gains import PLAIN_HELD, set_flags, tuned_gains  # noqa: E402  (the one home of tuned gains)
 
 PLAIN: dict[str, float] = {}  # the gains ``tune`` answers today for the robot as built, tuned by main
@@ -143,7 +143,8 @@ def robot_laps_of(folder: str) -> list:
     return [(lap.lap_time_s, *cross_track(lap, PITCH_M)[1:]) for lap in log_laps(os.path.join(folder, "echo.txt"))]
 
 
-def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: int) -> dict | None:
+def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: int,
+                      edge_seeds: int = twin_edge.SEEDS) -> dict | None:
     """How well any forecast could do at lap ``now`` of a robot whose one part wears along a straight line or a
     curve (``drifts``): the Cramér–Rao bound on the remaining life from its laps read through the twin's own
     observation model at the twin's own scatter (:mod:`tuner.prognostics.information`; value, rate and
@@ -155,7 +156,7 @@ def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: 
     drift = Drift.parse(drifts[0], twin)
     if drift.shape == "step" or drift.address not in SERVICE:
         return None
-    edge = race_ahead(twin, PLAIN)[drift.address]  # the races live ran ahead, read back
+    edge = race_ahead(twin, PLAIN, seeds=edge_seeds)[drift.address]  # the races live ran ahead, read back
     if edge.failure is None or edge.observation is None:
         return None
     values = [drift.at(k) for k in range(now + 1)]
@@ -195,9 +196,11 @@ def exact_check(drifts: list[str], twin: DigitalTwin, forecast, record: dict, no
 
 
 def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int,
-                 drifts: list[str] = (), cache: str | None = None) -> dict:
+                 drifts: list[str] = (), cache: str | None = None, edge_seeds: int = twin_edge.SEEDS) -> dict:
     """The forecasts at POINTS of the life, and every EVERY laps (for the prognostic horizon), from what the
-    history would hold: live's alignments and the robot's laps (lap time, the line's mean offset and side)."""
+    history would hold: live's alignments and the robot's laps (lap time, the line's mean offset and side), the
+    twin raced on ``edge_seeds`` noise seeds a value (live's race-ahead races the default: with any other, no
+    readiness figure)."""
     lap_times = [t for t, *_ in robot_laps]
     twin_edge.forget_races()  # each robot's first forecast reads the races its live ran ahead, in its cache folder
     if cache:  # (as run_robot ran it)
@@ -222,7 +225,7 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     def forecast(now, filter_seed=None, record=None):
         t0 = time.perf_counter()
         fs = history_forecasts(twin, PLAIN, [a for a in aligned if a["lap"] <= now], laps[:now + 1], CAUSES, now,
-                               seed=seed, filter_seed=filter_seed, record=record)
+                               seed=seed, filter_seed=filter_seed, record=record, seeds=edge_seeds)
         if joint in fs:
             made_joint.add(now)
         return soonest(fs.values()), time.perf_counter() - t0
@@ -257,9 +260,10 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
         else:
             joint_first = {k: out["forecasts"][later][k] for k in ("now", "wall_s")}
     done_path = os.path.join(folder, RACES_DONE)
-    if os.path.isfile(done_path):
+    if os.path.isfile(done_path) and edge_seeds == twin_edge.SEEDS:
         with open(done_path) as done_file:
-            out["ready"] = ready_within_a_lap(json.load(done_file), done, first, joint_first)
+            out["ready"] = ready_within_a_lap(json.load(done_file), done, first, joint_first, MIN_TIMED_LAPS,
+                                              len(SERVICE))
     # the Monte Carlo's own error: the forecast at half of the life again, on other filter seeds (the races kept)
     half = next(f for f in out["forecasts"] if f["now"] == half_now)  # its own seed's is made already
     others = [forecast(half["now"], filter_seed=k)[0].laps_to_failure for k in range(seed + 1, seed + FILTER_SEEDS)]
@@ -267,7 +271,7 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
                                    "medians": [half["median"], *others]}
     out["evidence_at_half"] = {"alignments": [a for a in aligned if a["lap"] <= half["now"]],
                                "laps": laps[:half["now"] + 1]}
-    out["information_limit"] = information_limit(twin, list(drifts), half["now"], half["true_rul"])
+    out["information_limit"] = information_limit(twin, list(drifts), half["now"], half["true_rul"], edge_seeds)
     twin_edge.forget_races()  # a new history process: the races read back from the cache folder
     again, wall = forecast(at[-1])
     assert again.quantiles == f.quantiles and again.statement == f.statement, "a race read back is not the race"
@@ -275,7 +279,8 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
     return out
 
 
-def race_seeds_at_half(twin: DigitalTwin, run: dict, race_seeds: int) -> dict | None:
+def race_seeds_at_half(twin: DigitalTwin, run: dict, race_seeds: int,
+                       edge_seeds: int = twin_edge.SEEDS) -> dict | None:
     """The forecast at half of the life again, on the same evidence and filter seed, from the twin raced on
     ``race_seeds`` other draws of its noise seeds (into whatever cache folder ``twin_edge.RACES`` names: robots on the
     same gains share them): {"now", "true_rul", "forecasts": [{"median", "lo", "hi"}, …]}, race seed 0's first."""
@@ -287,37 +292,11 @@ def race_seeds_at_half(twin: DigitalTwin, run: dict, race_seeds: int) -> dict | 
     out = [{"median": half["median"], "lo": half["lo"], "hi": half["hi"]}]
     for k in range(1, race_seeds + 1):
         f = soonest(history_forecasts(twin, PLAIN, given["alignments"], given["laps"], CAUSES, half["now"],
-                                      seed=k * RACE_SEED_STEP, filter_seed=0).values())
+                                      seed=k * RACE_SEED_STEP, filter_seed=0, seeds=edge_seeds).values())
         q = f.quantiles
         out.append({"median": f.laps_to_failure, "lo": None if q is None else q["5"],
                     "hi": None if q is None else q["95"]})
     return {"now": half["now"], "true_rul": half["true_rul"], "forecasts": out}
-
-
-def ready_within_a_lap(done: list[float], lap_times: list[float], first: dict | None,
-                       joint_first: dict | None) -> dict | None:
-    """Whether a robot at real time would have had its first forecast (``first``: {"now", "wall_s"}), and its first
-    of both parts at once (``joint_first``), within one lap of asking: asked when the lap is in (``MIN_TIMED_LAPS``
-    timed laps; the first lap of both at once), at the robot's median lap time (of its finished ``lap_times``);
-    ready when the races it needs are done (``done``: when each was written, :func:`races_done`; at a pace above
-    real time live works harder beside them, so they are slower here than at real time) and it is computed (its
-    wall time here, the races read). None without the races' times."""
-    if not done or not lap_times:
-        return None
-    lap_s = statistics.median(lap_times)
-    out = {"lap_s": round(lap_s, 2)}
-
-    def ready(asked_s, races_s, wall_s):
-        late = max(0.0, races_s - asked_s) + wall_s
-        return {"asked_s": round(asked_s, 1), "races_done_s": races_s, "wall_s": wall_s,
-                "late_s": round(late, 1), "within_a_lap": late <= lap_s}
-
-    if first is not None and len(done) >= len(SERVICE):  # asked at the earliest: when its laps are in
-        out["first"] = ready(MIN_TIMED_LAPS * lap_s, done[len(SERVICE) - 1], first["wall_s"])
-    if joint_first is not None:
-        out["first_joint"] = {"now": joint_first["now"],
-                              **ready((joint_first["now"] + 1) * lap_s, done[-1], joint_first["wall_s"])}
-    return out
 
 
 def main() -> None:
@@ -335,6 +314,9 @@ def main() -> None:
     ap.add_argument("--race-seeds", type=int, default=0, metavar="K", help="forecast each robot at half of its life "
                     "again from the twin raced on K other draws of its noise seeds (default 0: none; the robots "
                     "share those races, in one cache folder of the run)")
+    ap.add_argument("--edge-seeds", type=int, default=twin_edge.SEEDS, metavar="N", help="the twin's noise seeds "
+                    "a raced value, with --again (default %(default)s, as live races ahead and history forecasts: "
+                    "with another, the races are raced here and no readiness figure is given)")
     ap.add_argument("--quick", action="store_true", help="one robot, linear wear in 24 laps, 20× real time (for CI)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -343,6 +325,18 @@ def main() -> None:
         SCENARIOS.update(QUICK)
         args.seeds, args.speed, args.scenario = 1, 20.0, None
         args.race_seeds = max(args.race_seeds, 1)  # (its code path too: two more races)
+
+    def bad(message: str):  # one line, exit 2
+        print(f"error: {message}", file=sys.stderr)
+        sys.exit(2)
+
+    if args.edge_seeds < 2:
+        bad(f"--edge-seeds {args.edge_seeds}: at least 2 (a value's scatter needs two laps)")
+    if args.edge_seeds != twin_edge.SEEDS and not args.again:
+        bad(f"--edge-seeds {args.edge_seeds}: only with --again (live races the gains ahead on {twin_edge.SEEDS} "
+            "seeds a value)")
+    if args.again and not os.path.isdir(args.again):
+        bad(f"--again {args.again}: no such folder")
     PLAIN.update(QUICK_GAINS if args.quick else tuned_gains())
     GAINS[:] = set_flags(PLAIN)
     names = args.scenario or list(SCENARIOS)
@@ -352,8 +346,6 @@ def main() -> None:
     t0 = time.monotonic()
     if args.keep:
         os.makedirs(args.keep)
-    if args.again and not os.path.isdir(args.again):
-        sys.exit(f"error: --again {args.again}: no such folder")
     twin = DigitalTwin()
     twin.model()
     runs = []
@@ -380,16 +372,18 @@ def main() -> None:
                       f"{next((k for k, (t, *_) in enumerate(robot_laps) if t is None), None)}, "
                       f"{len(doc['alignments'])} alignments", file=sys.stderr)
                 runs.append({"scenario": name, "seed": seed,
-                             **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0], cache_of(folder))})
+                             **forecasts_of(twin, folder, doc, robot_laps, 0, SCENARIOS[name][0], cache_of(folder),
+                                            args.edge_seeds)})
         if args.race_seeds > 0:  # after the robots: one cache folder for these races, which every robot asks for
             twin_edge.RACES = os.path.join(tmp, "race-seeds", EDGES)
             for r in runs:
                 print(f"{r['scenario']} seed {r['seed']}: its forecast at half of its life on {args.race_seeds} more "
                       "races of the twin", file=sys.stderr)
-                r["race_seeds_at_half"] = race_seeds_at_half(twin, r, args.race_seeds)
+                r["race_seeds_at_half"] = race_seeds_at_half(twin, r, args.race_seeds, args.edge_seeds)
     for r in runs:
         r.pop("evidence_at_half", None)  # (the inputs, not a result)
     result = {"speed": None if args.again else args.speed, "seeds": args.seeds, "share_cache": args.share_cache,
+              "edge_seeds": args.edge_seeds,
               "wall_s": round(time.monotonic() - t0, 1),
               "all": metrics(runs), "by_scenario": {n: metrics([r for r in runs if r["scenario"] == n]) for n in names},
               "runs": runs}
@@ -398,6 +392,8 @@ def main() -> None:
         return
     pace = f"kept in {args.again} (their pace as run)" if args.again else f"at {args.speed:g}× real time"
     caches = "one cache folder for all" if args.share_cache else "a cache folder each"
+    if args.edge_seeds != twin_edge.SEEDS:
+        caches += f", the twin raced on {args.edge_seeds} noise seeds a value"
     print(f"{len(runs)} robots ({', '.join(names)} × {args.seeds} seeds) {pace}, {caches}, "
           f"{result['wall_s']:.0f} s wall")
     for name, m in [("all", result["all"]), *result["by_scenario"].items()]:

@@ -99,3 +99,30 @@ def metrics(runs: list[dict]) -> dict:
             else None,
             # how often an unbiased forecast at the information limit would meet α-λ (one part, straight or curved)
             "alpha_lambda_attainable_mean": round(statistics.mean(bounds), 3) if bounds else None}
+
+
+def ready_within_a_lap(done: list[float], lap_times: list[float], first: dict | None, joint_first: dict | None,
+                       timed_laps: int, one_cause_races: int) -> dict | None:
+    """Whether a robot at real time would have had its first forecast (``first``: {"now", "wall_s"}), and its first
+    of both parts at once (``joint_first``), within one lap of asking: asked when the lap is in (``timed_laps``, the
+    laps a forecast waits for; the first lap of both at once), at the robot's median lap time (of its finished
+    ``lap_times``); ready when the races it needs are done (``done``: when each race was written [s after live
+    started], in order: the first ``one_cause_races`` the parts one at a time, the rest the rows of both at once;
+    at a pace above real time live works harder beside them, so they are slower there than at real time) and it is
+    computed (its wall time, the races read). None without the races' times."""
+    if not done or not lap_times:
+        return None
+    lap_s = statistics.median(lap_times)
+    out = {"lap_s": round(lap_s, 2)}
+
+    def ready(asked_s, races_s, wall_s):
+        late = max(0.0, races_s - asked_s) + wall_s
+        return {"asked_s": round(asked_s, 1), "races_done_s": races_s, "wall_s": wall_s,
+                "late_s": round(late, 1), "within_a_lap": late <= lap_s}
+
+    if first is not None and len(done) >= one_cause_races:  # asked at the earliest: when its laps are in
+        out["first"] = ready(timed_laps * lap_s, done[one_cause_races - 1], first["wall_s"])
+    if joint_first is not None:
+        out["first_joint"] = {"now": joint_first["now"],
+                              **ready((joint_first["now"] + 1) * lap_s, done[-1], joint_first["wall_s"])}
+    return out

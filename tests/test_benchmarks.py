@@ -107,3 +107,15 @@ def test_benchmark_runs_in_quick_mode_and_prints_its_figures(argv, tmp_path, req
     if not PARTIAL & set(flags):  # the script's whole report: every row it names
         for row in FIGURES.get(script, []):
             assert any(row in line for line in numbered), f"{script} --quick printed no row {row!r}:\n{run.stdout}"
+
+
+@pytest.mark.parametrize("flags, says", [(["--edge-seeds", "20"], "--edge-seeds 20: only with --again"),
+                                         (["--again", "no-such-folder"], "--again no-such-folder: no such folder"),
+                                         (["--again", ".", "--edge-seeds", "1"], "--edge-seeds 1: at least 2")])
+def test_the_forecast_benchmark_refuses_bad_flags_in_one_line(flags, says, tmp_path):
+    """Before it tunes or races anything: one line naming the flag, exit 2."""
+    run = subprocess.run([sys.executable, os.path.join(BENCH, "bench_forecast.py"), *flags], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and run.stdout == ""
+    lines = run.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {says}"), run.stderr

@@ -1,11 +1,11 @@
 """The field's metrics over a prognostics benchmark's robots (tests/prognostic_metrics.py) against a hand
-calculation of Saxena et al.'s (2010) definitions on two made-up robots."""
+calculation of Saxena et al.'s (2010) definitions on two made-up robots, and its readiness on made-up times."""
 
 from __future__ import annotations
 
 import pytest
 
-from prognostic_metrics import covered, metrics
+from prognostic_metrics import covered, metrics, ready_within_a_lap
 
 pytestmark = pytest.mark.quick
 
@@ -49,3 +49,18 @@ def test_the_twins_draws_are_counted_over_robot_and_draw():
     m = metrics([drawn(10, (10, 8, 12), (13, 11, 15)), drawn(20, (20, 15, 25), (30, 26, 34))])
     assert m["alpha_lambda_met_per_race_seed"] == 0.5 and m["coverage_90_at_half_per_race_seed"] == 0.5
     assert m["race_seed_spread_median"] == pytest.approx(0.4) and m["race_seed_spread_max"] == pytest.approx(0.5)
+
+
+def test_readiness_is_the_lateness_after_asking_against_one_lap():
+    """Laps of 7, 7 and 8 s: a lap is 7 s (the median). Races written at 10 and 20 s (one cause each), then 150 s
+    (both at once). The first forecast, asked when 8 laps are in (56 s), its races done at 20 s, 1.5 s to compute:
+    1.5 s late, within a lap. The first of both at once at lap 17, asked when it is in (18 · 7 = 126 s), its races
+    done at 150 s, 2 s to compute: 26 s late, not within a lap."""
+    r = ready_within_a_lap([10.0, 20.0, 150.0], [7.0, 7.0, 8.0], {"now": 8, "wall_s": 1.5},
+                           {"now": 17, "wall_s": 2.0}, 8, 2)
+    assert r["lap_s"] == 7.0
+    assert r["first"] == {"asked_s": 56.0, "races_done_s": 20.0, "wall_s": 1.5, "late_s": 1.5, "within_a_lap": True}
+    assert r["first_joint"] == {"now": 17, "asked_s": 126.0, "races_done_s": 150.0, "wall_s": 2.0, "late_s": 26.0,
+                                "within_a_lap": False}
+    assert ready_within_a_lap([10.0], [7.0], {"now": 8, "wall_s": 1.0}, None, 8, 2) == {"lap_s": 7.0}  # one race
+    assert ready_within_a_lap([], [7.0], None, None, 8, 2) is None

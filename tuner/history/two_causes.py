@@ -195,20 +195,21 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
 
 def forecasts_of(twin: DigitalTwin, gains: dict, alignments: list[dict], laps: list[dict], causes: list[str],
                  now_lap: int, seed: int = 0, filter_seed: int | None = None,
-                 record: dict | None = None, race_wait_s: float | None = None) -> dict[str, Forecast]:
+                 record: dict | None = None, race_wait_s: float | None = None,
+                 seeds: int = EDGE_SEEDS) -> dict[str, Forecast]:
     """{address: forecast} for each cause on its own and, when no one of the parts that wear explains the last laps
     while two of them do wear, for both at once (:func:`forecast_two_causes`, keyed by :func:`joint_address`).
     ``record``: each one-cause filter's inputs, by address (:func:`forecast_failure`). ``race_wait_s``: how long
     the forecasts wait in all for races another process is running (None: until they are done); a forecast whose
-    races are not done by then says so."""
+    races are not done by then says so. ``seeds``: the twin's noise seeds a raced value."""
     left = time_left(race_wait_s)
     out: dict[str, Forecast] = {}
     for a in causes:  # once a race is another process's, the ones after it are to come from it too: not raced here
         waiting = any(f.note == STILL_RACING for f in out.values())
         out[a] = forecast_failure(twin, gains, alignments, laps, a, now_lap, seed=seed, filter_seed=filter_seed,
-                                  record=record, race_wait_s=left(), race_here=not waiting)
+                                  record=record, race_wait_s=left(), race_here=not waiting, seeds=seeds)
     worn = tuple(sorted(SERVICE))
     if len(worn) == 2 and all(a in out and alone_explains(out[a]) is False for a in worn):
         out[joint_address(worn)] = forecast_two_causes(twin, gains, laps, worn, now_lap, seed=seed,
-                                                       filter_seed=filter_seed, race_wait_s=left())
+                                                       filter_seed=filter_seed, race_wait_s=left(), seeds=seeds)
     return out
