@@ -84,11 +84,13 @@ class PlaneFailure:
 
         x = np.asarray(x, float)
         w = x[..., 1].ravel()
-        threshold = (_weights(self.rows, w) @ self.thresholds).reshape(x.shape[:-1])
+        weights = _weights(self.rows, w)
+        threshold = (weights @ self.thresholds).reshape(x.shape[:-1])
         # the width's logarithm (never negative) across the rows, held beyond them as the scatter is: on the line
         # it shrank or grew without end, to overflow for a future that runs far past the outer rows
-        held = _weights(self.rows, np.clip(w, self.rows[0], self.rows[-1]))
-        width = np.exp(held @ np.log(self.widths)).reshape(x.shape[:-1])
+        log_width = np.log(self.widths)
+        held = np.where(w < self.rows[0], log_width[0], np.where(w > self.rows[-1], log_width[-1], weights @ log_width))
+        width = np.exp(held).reshape(x.shape[:-1])
         return ndtr(self.directions[0] * (x[..., 0] - threshold - shift) / width)
 
 
