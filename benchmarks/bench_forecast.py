@@ -69,6 +69,7 @@ from tuner.history.report import soonest
 from tuner.history import twin_edge
 from tuner.history.two_causes import forecasts_of as history_forecasts, joint_address
 from tuner.prognostics.information import remaining_life_bound, within_alpha
+from twin.cli.guard import fail
 from twin.core.digital_twin import DigitalTwin
 from twin.link.emulator import Drift
 
@@ -325,18 +326,13 @@ def main() -> None:
         SCENARIOS.update(QUICK)
         args.seeds, args.speed, args.scenario = 1, 20.0, None
         args.race_seeds = max(args.race_seeds, 1)  # (its code path too: two more races)
-
-    def bad(message: str):  # one line, exit 2
-        print(f"error: {message}", file=sys.stderr)
-        sys.exit(2)
-
     if args.edge_seeds < 2:
-        bad(f"--edge-seeds {args.edge_seeds}: at least 2 (a value's scatter needs two laps)")
+        sys.exit(fail(f"--edge-seeds {args.edge_seeds}: at least 2 (a value's scatter needs two laps)"))
     if args.edge_seeds != twin_edge.SEEDS and not args.again:
-        bad(f"--edge-seeds {args.edge_seeds}: only with --again (live races the gains ahead on {twin_edge.SEEDS} "
-            "seeds a value)")
+        sys.exit(fail(f"--edge-seeds {args.edge_seeds}: only with --again (live races the gains ahead on "
+                      f"{twin_edge.SEEDS} seeds a value)"))
     if args.again and not os.path.isdir(args.again):
-        bad(f"--again {args.again}: no such folder")
+        sys.exit(fail(f"--again {args.again}: no such folder"))
     PLAIN.update(QUICK_GAINS if args.quick else tuned_gains())
     GAINS[:] = set_flags(PLAIN)
     names = args.scenario or list(SCENARIOS)
