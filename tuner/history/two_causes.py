@@ -41,6 +41,9 @@ ROWS = 7  # values of the second cause the first is raced at: the twin's own, th
 ROW_CROWDING = 2.0  # row k at 1 − (1 − k/(ROWS − 1))² of the way: grip's edge moves fastest near the battery's own
 # edge (evenly, bench_forecast's two-cause robot seed 7 was forecast 32, 26 and 15 laps at 30/50/70 % of its life,
 # against 42, 30 and 18, none covered)
+SECOND_ALONE = 1e-3  # a row counts towards the first cause's edge where the second alone fails fewer laps than this
+# (its edge 3.1 widths on): nearer, a lap fails about as often at any grip, and the row's edge along grip is the
+# twin's Monte Carlo (PlaneFailure: the second's own edge says when those laps fail)
 TELLS_APART = 0.9  # above this |correlation| of the two values over the particles the laps do not tell them apart
 
 
@@ -96,11 +99,13 @@ def race_plane(twin: DigitalTwin, gains: dict, causes: tuple[str, str], seed: in
                                               end, d1, seed, limits, seeds=seeds, wait_s=left())))
     except StillBuilding:  # (the second cause's race alone, then the rows)
         raise RowsRacing(len(edges) + (alone is not None), ROWS + 1) from None
-    failing = [(w, e.failure) for w, e in edges if e.failure is not None]
+    # a row's failures are the first cause's only where the second alone (almost) never fails a lap
+    clear = [alone.failure is None or float(alone.failure.p_fail(w)) < SECOND_ALONE for w, _ in edges]
+    failing = [(w, e.failure) for (w, e), c in zip(edges, clear) if e.failure is not None and c]
     seen = [(w, e.observation) for w, e in edges if e.observation is not None]
     own_edge = edges[0][1].failure
     spans = (abs(start - own_edge.threshold) if own_edge is not None else abs(end - start), abs(own - far))
-    failure = PlaneFailure.of(failing, d2) if len(failing) >= 2 else None
+    failure = PlaneFailure.of(failing, d2, alone.failure) if len(failing) >= 2 else None
     row_edges = None if failure is None else failure.threshold(np.array([w for w, _ in seen]))
     return Plane(failure, PlaneObservation.of(seen, row_edges) if len(seen) >= 2 else None,
                  tuple(float(w) for w in values),

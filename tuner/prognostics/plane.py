@@ -52,17 +52,26 @@ class PlaneFailure:
     """The gains in force fail a lap at (u, w) with probability Φ(d·(u − threshold(w) − shift)/width(w)): each row's
     edge along the first cause (``rows`` the second cause's values, ascending), between rows on a cubic across them
     (:func:`_weights`), beyond them the threshold straight on and the width held. ``shift`` is
-    the robot's edge against the twin's, in the first cause's unit. ``directions``: the way each part wears."""
+    the robot's edge against the twin's, in the first cause's unit. ``directions``: the way each part wears.
+
+    With ``second`` (the second cause's own edge, raced at the first's least worn value), a lap also fails as the
+    second cause alone fails it, whatever the first: 1 − (1 − p_first)(1 − p_second). Near the second cause's own
+    edge a row's laps fail as the second fails them at any value of the first (the default robot's battery: below
+    4.0 V its calibration turn leaves a sensor short of the line, at grip 0.45 to 0.9 alike), and a fit along the
+    first there is the race's noise (0.54 to 0.78 over four draws of the twin's races at five seeds a value, the
+    end of the range at twenty): those rows are left to ``second`` (:func:`tuner.history.two_causes.race_plane`)."""
     rows: np.ndarray
     thresholds: np.ndarray
     widths: np.ndarray
     directions: tuple[float, float]
+    second: FailureModel | None = None
 
     @classmethod
-    def of(cls, rows: list[tuple[float, FailureModel]], second_direction: float) -> "PlaneFailure":
+    def of(cls, rows: list[tuple[float, FailureModel]], second_direction: float,
+           second: FailureModel | None = None) -> "PlaneFailure":
         rows = sorted(rows, key=lambda r: r[0])
         return cls(np.array([w for w, _ in rows]), np.array([f.threshold for _, f in rows]),
-                   np.array([f.width for _, f in rows]), (rows[0][1].direction, second_direction))
+                   np.array([f.width for _, f in rows]), (rows[0][1].direction, second_direction), second)
 
     @property
     def direction(self) -> np.ndarray:
@@ -91,7 +100,10 @@ class PlaneFailure:
         log_width = np.log(self.widths)
         held = np.where(w < self.rows[0], log_width[0], np.where(w > self.rows[-1], log_width[-1], weights @ log_width))
         width = np.exp(held).reshape(x.shape[:-1])
-        return ndtr(self.directions[0] * (x[..., 0] - threshold - shift) / width)
+        first = ndtr(self.directions[0] * (x[..., 0] - threshold - shift) / width)
+        if self.second is None:
+            return first
+        return 1.0 - (1.0 - first) * (1.0 - self.second.p_fail(x[..., 1]))
 
 
 @dataclasses.dataclass(frozen=True)
