@@ -213,9 +213,9 @@ def test_a_robot_whose_grip_and_battery_wear_together_is_forecast_from_both_and_
     # below 4.0 V, leaves a sensor short of the line): the plane says so from the battery's own edge, its rows
     # there left out of grip's (fitted on five seeds a value, that row's grip edge is noise: 0.54 to 0.78 over four
     # draws of the twin's races on the benchmark's gains; on these, a lap at the twin's own grip 2 widths past the
-    # battery's edge failed 26 % of the time). Against the twin raced 2 of the edge's widths either side of it at two grips, 16
-    # seeds of its own each: each count inside the binomial's two-sided 99 % (a false alarm 4 % of seedings at
-    # most, these seeds fixed)
+    # battery's edge failed 26 % of the time). Against the twin raced 2 of the edge's widths either side of it at two
+    # grips, 16 seeds of its own each: each count inside the binomial's two-sided 99 % (a false alarm 4 % of seedings
+    # at most, these seeds fixed)
     from scipy.stats import binom
 
     from tuner.history.two_causes import SECOND_ALONE

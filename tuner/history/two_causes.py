@@ -100,8 +100,8 @@ def race_plane(twin: DigitalTwin, gains: dict, causes: tuple[str, str], seed: in
     except StillBuilding:  # (the second cause's race alone, then the rows)
         raise RowsRacing(len(edges) + (alone is not None), ROWS + 1) from None
     # a row's failures are the first cause's only where the second alone (almost) never fails a lap
-    clear = [alone.failure is None or float(alone.failure.p_fail(w)) < SECOND_ALONE for w, _ in edges]
-    failing = [(w, e.failure) for (w, e), c in zip(edges, clear) if e.failure is not None and c]
+    failing = [(w, e.failure) for w, e in edges if e.failure is not None
+               and (alone.failure is None or alone.failure.p_fail(w) < SECOND_ALONE)]
     seen = [(w, e.observation) for w, e in edges if e.observation is not None]
     own_edge = edges[0][1].failure
     spans = (abs(start - own_edge.threshold) if own_edge is not None else abs(end - start), abs(own - far))
