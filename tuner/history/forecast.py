@@ -217,6 +217,19 @@ def outcomes_of(laps: list[dict], gains: dict) -> list[Outcome]:
     return [Outcome(int(r["n"]), not r["completed"]) for r in laps if same_gains(r.get("gains"), gains)]
 
 
+def carried_on(last_read: int, outcomes: list[Outcome], now_lap: int) -> str:
+    """What a value now rests on when the robot's last laps were not read ("" when the last lap was): a failed lap
+    says only that the value is past where the gains fail, not how far, so the filter carries the wear on at its
+    rate from the last lap read, and the band is that rate's, not a reading (issue 35: a battery held at 3.95 V
+    read as 3.35 V after its laps began to fail)."""
+    since = [o for o in outcomes if last_read < o.lap <= now_lap]
+    if now_lap <= last_read or not since:
+        return ""
+    failed = sum(o.failed for o in since)
+    return (f"; carried on at its rate from lap {last_read}, the last lap read: the {len(since)} lap(s) since "
+            f"({failed} failed) say only which side of the twin's edge it lies")
+
+
 def no_number(address: str, now_lap: int, statement: str, evidence: dict, note: str, band=()) -> Forecast:
     return Forecast(address, now_lap, statement, None, None, None, None, None, None, None, None, 0, evidence,
                     tuple(band), (), note)
@@ -374,7 +387,9 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
         if said:
             advice.append(said)
     read = f"{len(obs)} laps read through the twin ({', '.join(model.names)})" if obs else "no lap read"
-    note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}), from {len(kept)} alignments, {read} and "
+    last_read = max([o.lap for o in obs] + [m.lap for m in kept])
+    note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}{carried_on(last_read, outs, now_lap)}), from "
+            f"{len(kept)} alignments, {read} and "
             f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "
             f"laps fail at {failure.threshold:.4g} (the first failure raced at {failing:.4g})")
     return Forecast(address, now_lap, statement, med, (lo, hi), state.rate_quantiles(), failure.threshold, laps_to,

@@ -24,7 +24,7 @@ import numpy as np
 
 from lf_common.cache import StillBuilding
 from tuner.history.forecast import (EDGE_PRIOR, LAP_TIMEOUT_S, MIN_TIMED_LAPS, SERVICE, STILL_RACING, Forecast,
-                                    alone_explains, carried, forecast_failure, no_number, observations_of,
+                                    alone_explains, carried, carried_on, forecast_failure, no_number, observations_of,
                                     outcomes_of, race_range, service_direction)
 from tuner.history.twin_edge import SEEDS as EDGE_SEEDS
 from tuner.history.twin_edge import twin_edge
@@ -188,8 +188,9 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
         said = service_advice(life, SERVICE[c][1], c, SERVICE[c][0], dim=k)
         if said:
             advice.append(said)
+    since = carried_on(max(o.lap for o in obs), outs, now_lap)
     now = "; ".join(f"{c} is {p['value_now']:.4g} now (90 % {p['value_band'][0]:.4g}–{p['value_band'][1]:.4g})"
-                    for c, p in per.items())
+                    for c, p in per.items()) + (f" ({since[2:]})" if since else "")
     note = (f"{now}, from {len(obs)} laps read through the twin ({', '.join(names)}) and "
             f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "
             f"laps fail at {causes[0]} {failing_now:.4g} with {causes[1]} at its value now (raced at {causes[1]} "
