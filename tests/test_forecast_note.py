@@ -40,3 +40,4 @@ def test_the_note_of_a_forecast_past_its_last_lap_read_says_the_value_is_carried
     assert f"; carried on at its rate from lap 25, the last lap read: the 3 lap(s) since (3 failed) {SAID}), from 3 " \
            "alignments" in late.note
     assert "already fail" in late.statement  # its last lap failed
+    assert read.evidence["last_read_lap"] == late.evidence["last_read_lap"] == 25  # the JSON's, which the CLI says

@@ -364,8 +364,10 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
                           service_limit=service[0] if service is not None else None)
     already = bool(outs) and outs[-1].failed and outs[-1].lap == now_lap
     lo, med, hi = state.quantiles()
+    last_read = max([o.lap for o in obs] + [m.lap for m in kept])
     evidence["observed_laps"] = len(obs)
     evidence["alignments_used"] = len(kept)  # those of laps before the first lap read
+    evidence["last_read_lap"] = last_read  # the value now is carried on from here (carried_on)
     advice: list[str] = []
     if already:
         statement = f"the gains in force already fail (the robot's last lap, {now_lap}, did)"
@@ -387,7 +389,6 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
         if said:
             advice.append(said)
     read = f"{len(obs)} laps read through the twin ({', '.join(model.names)})" if obs else "no lap read"
-    last_read = max([o.lap for o in obs] + [m.lap for m in kept])
     note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}{carried_on(last_read, outs, now_lap)}), from "
             f"{len(kept)} alignments, {read} and "
             f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "

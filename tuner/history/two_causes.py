@@ -160,7 +160,7 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
     state = estimate((), outs, now_lap, settings, plane.failure, filter_seed, obs, seen)
     limits = np.array([SERVICE[c][0] for c in causes])
     life = remaining_life(state, plane.failure, settings.q, filter_seed + 1, service_limit=limits)
-    evidence.update(observed_laps=len(obs), alignments_used=0, features=list(names))
+    evidence.update(observed_laps=len(obs), alignments_used=0, features=list(names), last_read_lap=obs[-1].lap)
     told = abs(float(np.corrcoef(state.value[:, 0], state.value[:, 1])[0, 1])) < TELLS_APART
     per = {c: {"value_now": state.quantiles(dim=k)[1], "value_band": state.quantiles((0.05, 0.95), dim=k),
                "rate": state.rate_quantiles(dim=k), "band": [(b[0], *b[1 + 3 * k:4 + 3 * k]) for b in state.band]}
@@ -188,7 +188,7 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
         said = service_advice(life, SERVICE[c][1], c, SERVICE[c][0], dim=k)
         if said:
             advice.append(said)
-    since = carried_on(max(o.lap for o in obs), outs, now_lap)
+    since = carried_on(obs[-1].lap, outs, now_lap)
     now = "; ".join(f"{c} is {p['value_now']:.4g} now (90 % {p['value_band'][0]:.4g}–{p['value_band'][1]:.4g})"
                     for c, p in per.items()) + (f" ({since[2:]})" if since else "")
     note = (f"{now}, from {len(obs)} laps read through the twin ({', '.join(names)}) and "

@@ -122,19 +122,24 @@ def _say(out: Output, e: dict) -> None:
         out.say(f"  gains #{ch['seq']} ({ch['kind']}, decided at lap {ch['decided_lap']}): {ch['status']}{stored}"
                 + (f" — {ch['outcome']}" if ch["outcome"] else ""))
     for address, f in (e.get("forecasts") or {}).items():
+        read = f["evidence"].get("last_read_lap")
+        carried = ""  # the value now not read but carried on at its rate (tuner.history.forecast.carried_on)
+        if read is not None and read < f["now_lap"]:
+            carried = f" (carried on from lap {read}, the last lap read)"
         if f["rate"] is not None:
             lo, mid, hi = f["rate"]
-            out.say(f"  {address}: {f['value_now']:.4g} at lap {f['now_lap']}, {mid:+.3g} per lap (90 %: {lo:+.3g} to "
-                    f"{hi:+.3g}), from {f['evidence'].get('alignments_used', f['evidence']['alignments'])} alignments, "
-                    f"{f['evidence'].get('observed_laps', 0)} "
-                    f"laps read through the twin and {f['evidence']['laps']} lap outcomes")
+            out.say(f"  {address}: {f['value_now']:.4g} at lap {f['now_lap']}{carried}, {mid:+.3g} per lap (90 %: "
+                    f"{lo:+.3g} to {hi:+.3g}), from "
+                    f"{f['evidence'].get('alignments_used', f['evidence']['alignments'])} alignments, "
+                    f"{f['evidence'].get('observed_laps', 0)} laps read through the twin and {f['evidence']['laps']} "
+                    "lap outcomes")
         elif f.get("misfit") is not None:
             out.say(f"  {address}: {f['statement']}")
         for cause, c in (f.get("causes") or {}).items():  # both at once (tuner.history.two_causes)
             lo, mid, hi = c["rate"]
             out.say(f"  {cause} (with {' and '.join(a for a in f['causes'] if a != cause)} at once): "
-                    f"{c['value_now']:.4g} at lap {f['now_lap']}, {mid:+.3g} per lap (90 %: {lo:+.3g} to {hi:+.3g}), "
-                    f"from {f['evidence'].get('observed_laps', 0)} laps read through the twin and "
+                    f"{c['value_now']:.4g} at lap {f['now_lap']}{carried}, {mid:+.3g} per lap (90 %: {lo:+.3g} to "
+                    f"{hi:+.3g}), from {f['evidence'].get('observed_laps', 0)} laps read through the twin and "
                     f"{f['evidence']['laps']} lap outcomes")
     if e.get("causes_note"):
         out.say(f"  causes: {e['causes_note']}")
