@@ -21,7 +21,7 @@ def test_a_value_carried_past_the_last_lap_read_says_so():
     """Laps 11-14 after the last lap read (10), two of them failed: the value now is carried on from lap 10."""
     outcomes = [Outcome(n, n in (12, 14)) for n in range(15)]
     assert carried_on(14, outcomes, 14) == "" and carried_on(10, outcomes, 10) == ""
-    assert carried_on(10, outcomes, 14) == (f"; carried on at its rate from lap 10, the last lap read: the 4 lap(s) "
+    assert carried_on(10, outcomes, 14) == (f"carried on at its rate from lap 10, the last lap read: the 4 lap(s) "
                                             f"since (2 failed) {SAID}")
 
 

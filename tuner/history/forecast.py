@@ -226,7 +226,7 @@ def carried_on(last_read: int, outcomes: list[Outcome], now_lap: int) -> str:
     if now_lap <= last_read or not since:
         return ""
     failed = sum(o.failed for o in since)
-    return (f"; carried on at its rate from lap {last_read}, the last lap read: the {len(since)} lap(s) since "
+    return (f"carried on at its rate from lap {last_read}, the last lap read: the {len(since)} lap(s) since "
             f"({failed} failed) say only which side of the twin's edge it lies")
 
 
@@ -389,7 +389,8 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
         if said:
             advice.append(said)
     read = f"{len(obs)} laps read through the twin ({', '.join(model.names)})" if obs else "no lap read"
-    note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}{carried_on(last_read, outs, now_lap)}), from "
+    since = carried_on(last_read, outs, now_lap)
+    note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}{'; ' + since if since else ''}), from "
             f"{len(kept)} alignments, {read} and "
             f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "
             f"laps fail at {failure.threshold:.4g} (the first failure raced at {failing:.4g})")

@@ -190,7 +190,7 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
             advice.append(said)
     since = carried_on(obs[-1].lap, outs, now_lap)
     now = "; ".join(f"{c} is {p['value_now']:.4g} now (90 % {p['value_band'][0]:.4g}–{p['value_band'][1]:.4g})"
-                    for c, p in per.items()) + (f" ({since[2:]})" if since else "")
+                    for c, p in per.items()) + (f" ({since})" if since else "")
     note = (f"{now}, from {len(obs)} laps read through the twin ({', '.join(names)}) and "
             f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "
             f"laps fail at {causes[0]} {failing_now:.4g} with {causes[1]} at its value now (raced at {causes[1]} "
