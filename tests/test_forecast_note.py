@@ -41,3 +41,24 @@ def test_the_note_of_a_forecast_past_its_last_lap_read_says_the_value_is_carried
            "alignments" in late.note
     assert "already fail" in late.statement  # its last lap failed
     assert read.evidence["last_read_lap"] == late.evidence["last_read_lap"] == 25  # the JSON's, which the CLI says
+    assert (read.evidence["carried_on"], late.evidence["carried_on"]) == (False, True)  # one condition, note and CLI
+
+
+@pytest.mark.quick
+def test_the_history_command_says_carried_on_when_the_forecast_does(capsys):
+    """The command's value line says "carried on" from the forecast's own flag (evidence.carried_on), the note's
+    condition: a last lap read before the lap now with no lap outcome since (another gains' laps) is not carried."""
+    from twin.cli.history import say_entry
+    from twin.cli.output import Output
+
+    def entry(carried: bool) -> dict:
+        forecast = {"value_now": 0.7, "now_lap": 28, "rate": (-0.006, -0.005, -0.004), "misfit": None,
+                    "statement": "", "evidence": {"alignments": 0, "alignments_used": 0, "observed_laps": 20,
+                                                  "laps": 29, "last_read_lap": 25, "carried_on": carried}}
+        return {"kind": "robot", "robot": "r", "laps": 29, "completed": 26, "failed": 3, "median_lap_time_s": None,
+                "changes": [], "forecasts": {"motion.mu": forecast}, "forecast": None, "advice": []}
+
+    say_entry(Output(False), entry(True))
+    assert "motion.mu: 0.7 at lap 28 (carried on from lap 25, the last lap read), -0.005 per lap" in capsys.readouterr().out
+    say_entry(Output(False), entry(False))
+    assert "carried on" not in capsys.readouterr().out

@@ -3,6 +3,7 @@ ready within a lap): an emulated robot through ``live --db``, then ``history``: 
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 
@@ -133,3 +134,30 @@ def test_a_forecast_whose_race_another_process_runs_says_so_within_its_wait(tmp_
     assert (racing.value.done, racing.value.total) == (0, ROWS + 1)
     # nothing raced, nothing half written: only the holders' locks are there
     assert sorted(races(tmp_path)) == sorted(os.path.basename(h.name) for h in held)
+
+
+@pytest.mark.quick
+def test_a_race_is_keyed_by_the_code_it_runs_not_by_the_command_line():
+    """The race's key hashes the twin's packages and the race's own modules (an edit there races again), not
+    twin/cli: a command's wording changes no race, and no race runs through it (no module outside twin/cli imports
+    it but the entry points)."""
+    import twin
+    import tuner
+
+    root = os.path.dirname(twin.__file__)
+    files = [os.path.relpath(f, root) for f in te.digest_files()]
+    assert not [f for f in files if f.startswith("cli" + os.sep)]
+    assert os.path.join("core", "closed_loop.py") in files and os.path.join("core", "digital_twin.py") in files
+    assert any(f.endswith(os.path.join("history", "twin_edge.py")) for f in files)
+    assert any(f.endswith(os.path.join("prognostics", "evidence.py")) for f in files)
+    entry = {"run.py", "__main__.py"}  # the command line's own front doors
+    for package in (twin, tuner):
+        for r, _, names in os.walk(os.path.dirname(package.__file__)):
+            if os.path.commonpath([r, os.path.join(root, "cli")]) == os.path.join(root, "cli"):
+                continue
+            for n in (n for n in names if n.endswith(".py") and n not in entry):
+                with open(os.path.join(r, n)) as f:
+                    tree = ast.parse(f.read())
+                imported = [a.name for node in ast.walk(tree) if isinstance(node, ast.Import) for a in node.names]
+                imported += [node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)]
+                assert not [m for m in imported if m == "twin.cli" or m.startswith("twin.cli.")], os.path.join(r, n)

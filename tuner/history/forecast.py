@@ -390,6 +390,7 @@ def forecast_failure(twin: DigitalTwin, gains: dict, alignments: list[dict], lap
             advice.append(said)
     read = f"{len(obs)} laps read through the twin ({', '.join(model.names)})" if obs else "no lap read"
     since = carried_on(last_read, outs, now_lap)
+    evidence["carried_on"] = bool(since)  # the value now is not read but carried on from last_read_lap
     note = (f"{address} is {med:.4g} now (90 % {lo:.4g}–{hi:.4g}{'; ' + since if since else ''}), from "
             f"{len(kept)} alignments, {read} and "
             f"{evidence['laps']} lap outcomes on these gains ({evidence['failed']} failed); on the twin half their "

@@ -201,14 +201,24 @@ def code_digest() -> str:
     """What decides a race beside its inputs: the C core and the Python of the twin and of this race (a change to
     either is a new key: a stored race is never read for other code)."""
     import twin
+
+    return files_digest(digest_files(), os.path.dirname(os.path.dirname(os.path.abspath(twin.__file__))))
+
+
+def digest_files() -> list[str]:
+    """The files :func:`code_digest` hashes: the twin's packages and this race's own modules, not the command line
+    (``twin/cli``: it says what a race gave, and no race runs through it; hashed, every edit of a command's wording
+    raced every stored race again, a user's first forecast after an upgrade waiting on it)."""
+    import twin
     import tuner
 
     roots = [os.path.dirname(twin.__file__)] + [os.path.dirname(m.__file__) for m in _model_packages()]
+    cli = os.path.join(os.path.dirname(twin.__file__), "cli")
     files = [os.path.join(r, n) for root in roots for r, _, names in os.walk(root) for n in names
-             if n.endswith((".py", ".so", ".pyd", ".c", ".h"))]
+             if n.endswith((".py", ".so", ".pyd", ".c", ".h")) and os.path.commonpath([r, cli]) != cli]
     files.append(__file__)
     files.append(os.path.join(os.path.dirname(tuner.__file__), "prognostics", "evidence.py"))
-    return files_digest(files, os.path.dirname(os.path.dirname(os.path.abspath(twin.__file__))))
+    return files
 
 
 def _model_packages():

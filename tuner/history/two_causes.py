@@ -189,6 +189,7 @@ def forecast_two_causes(twin: DigitalTwin, gains: dict, laps: list[dict], causes
         if said:
             advice.append(said)
     since = carried_on(obs[-1].lap, outs, now_lap)
+    evidence["carried_on"] = bool(since)
     now = "; ".join(f"{c} is {p['value_now']:.4g} now (90 % {p['value_band'][0]:.4g}–{p['value_band'][1]:.4g})"
                     for c, p in per.items()) + (f" ({since})" if since else "")
     note = (f"{now}, from {len(obs)} laps read through the twin ({', '.join(names)}) and "

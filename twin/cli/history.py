@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     saved = save_history(args.save, args.view, entries)
     out.document({"db": display(args.db), "robots": entries, "charts": charts, "recording": saved})
     for e in entries:
-        _say(out, e)
+        say_entry(out, e)
     for what in charts + ([saved] if saved else []):
         out.say(f"wrote {what}")
     return 0
@@ -114,7 +114,8 @@ def _json(v):
     return None if isinstance(v, float) and not math.isfinite(v) else str(v)
 
 
-def _say(out: Output, e: dict) -> None:
+def say_entry(out: Output, e: dict) -> None:
+    """One robot's entry of the history (as `--json` gives it under "robots") in lines for a person."""
     median = f", median lap {e['median_lap_time_s']:.3f} s" if e["median_lap_time_s"] else ""
     out.say(f"{e['kind']} {e['robot']}: {e['laps']} laps, {e['completed']} completed, {e['failed']} failed{median}")
     for ch in e["changes"]:
@@ -122,10 +123,9 @@ def _say(out: Output, e: dict) -> None:
         out.say(f"  gains #{ch['seq']} ({ch['kind']}, decided at lap {ch['decided_lap']}): {ch['status']}{stored}"
                 + (f" — {ch['outcome']}" if ch["outcome"] else ""))
     for address, f in (e.get("forecasts") or {}).items():
-        read = f["evidence"].get("last_read_lap")
         carried = ""  # the value now not read but carried on at its rate (tuner.history.forecast.carried_on)
-        if read is not None and read < f["now_lap"]:
-            carried = f" (carried on from lap {read}, the last lap read)"
+        if f["evidence"].get("carried_on"):
+            carried = f" (carried on from lap {f['evidence']['last_read_lap']}, the last lap read)"
         if f["rate"] is not None:
             lo, mid, hi = f["rate"]
             out.say(f"  {address}: {f['value_now']:.4g} at lap {f['now_lap']}{carried}, {mid:+.3g} per lap (90 %: "
