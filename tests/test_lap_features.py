@@ -11,7 +11,7 @@ import pytest
 
 from tuner.history.forecast import COLUMNS, carried, misfit_limit, observations_of
 from tuner.history.ingest import cross_track
-from tuner.history.twin_edge import FEATURES, lap_features
+from tuner.history.twin_edge import FEATURES, lap_features, observation_model
 from tuner.prognostics import ObservationModel
 from twin.core.closed_loop import run_laps
 from twin.core.digital_twin import DigitalTwin
@@ -112,3 +112,26 @@ def test_a_history_from_before_the_side_keeps_its_laps_and_reads_them_without_it
         h.close()
     assert [(r["lap_time_s"], r["xte_mean_m"], r["line_side_m"]) for r in rows] == [(7.25, 0.0041, None)]
     assert carried([{**rows[0], "completed": True}]) == ("lap_time_s", "line_offset_m")
+
+
+@pytest.mark.quick
+def test_a_part_that_slows_every_lap_is_read_to_its_edge_and_a_lap_that_lost_the_line_is_not():
+    """A battery running down: each value raced 1.6 % slower than the one before, 20 values, 6.9 s to 9.4 s (36 %
+    slower, regular all the way): the twin reads them all, and a robot's lap as slow as the last. A value where one
+    lap took 1.3 times the value before it (it lost the line and found it again) ends the model there, and a lap
+    1.3 times the slowest mean is not read."""
+    rng = np.random.default_rng(3)
+    values = 6.24 - 0.08 * np.arange(20)  # least worn first
+
+    def laps(t):
+        return [(False, (t * (1 + 1e-3 * rng.standard_normal()), 1e-3 + 1e-5 * rng.standard_normal(),
+                         -5e-4 + 1e-5 * rng.standard_normal())) for _ in range(5)]
+
+    times = 6.9 * 1.016 ** np.arange(20)
+    rows = [(float(v), laps(t)) for v, t in zip(values, times)]
+    model = observation_model(rows)
+    assert len(model.values) == 20 and model.means[:, 0].max() == pytest.approx(times[-1], rel=2e-3)
+    assert model.reads((times[-1],)) and not model.reads((1.3 * times[-1],))
+    lost = [(v, list(ls)) for v, ls in rows]
+    lost[12][1][0] = (False, (1.3 * times[11],) + lost[12][1][0][1][1:])
+    assert len(observation_model(lost).values) == 12  # values 0-11: the value with the lost lap and all past it

@@ -191,7 +191,7 @@ def test_a_lap_the_twin_reads_weighs_the_values_by_its_features_and_a_second_cau
     assert ll[0] == pytest.approx(-0.5 - 0.5 * math.log(1e-12))
     assert model.misfit((7.2, 4.5e-3), (0.5, 1.1)) == pytest.approx(0.0, abs=1e-3)
     assert model.misfit((7.6, 4.0e-3), (0.5, 1.1)) > 100  # slower than wear at 0.7 gives, the line as at 1.0
-    assert model.reads((7.0 * 1.2,)) and not model.reads((7.0 * 1.3,))
+    assert model.reads((8.0 * 1.2,)) and not model.reads((8.0 * 1.3,))  # against the slowest mean, at 0.6
 
 
 def test_the_same_evidence_on_other_filter_seeds_gives_the_same_remaining_life():

@@ -111,8 +111,9 @@ def _mostly_fail(laps) -> bool:
 def observation_model(rows) -> ObservationModel | None:
     """The features' means and covariance over noise seeds of the finished laps at each value raced before the edge
     (``rows`` from the least worn; the edge: the first value where most laps fail, or fewer than two finish) while
-    its laps are regular (none ``SLOW`` times slower than the least worn's mean: past there laps lose the line and
-    find it again). Each value's covariance (few seeds) is shrunk halfway towards its neighbours' (the values
+    its laps are regular (none ``SLOW`` times slower than the mean of the value raced before it: past there laps
+    lose the line and find it again; against the least worn value's mean, a part that slows every lap, a battery
+    running down, was cut off 40 % of its way short of its edge). Each value's covariance (few seeds) is shrunk halfway towards its neighbours' (the values
     raced on either side), and widened by the mean's own standard error. Pooled over every value instead, the
     scatter near the edge (ten times the variance far from it) set the scatter everywhere: a robot's early laps
     were read with a third of their sharpness, and early wear was seen late (issue 35). The means are read off a
@@ -123,7 +124,7 @@ def observation_model(rows) -> ObservationModel | None:
         if _mostly_fail(laps) or len(finished) < 2:
             break
         y = np.array(finished)
-        if done and y[:, 0].max() > SLOW * done[0][1][:, 0].mean():
+        if done and y[:, 0].max() > SLOW * done[-1][1][:, 0].mean():
             break
         done.append((v, y))
     if len(done) < 2:
