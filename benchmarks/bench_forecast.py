@@ -336,11 +336,7 @@ def main() -> None:
                       f"{twin_edge.SEEDS} seeds a value)"))
     if args.again and not os.path.isdir(args.again):
         sys.exit(fail(f"--again {args.again}: no such folder"))
-    PLAIN.update(QUICK_GAINS if args.quick else tuned_gains())
-    GAINS[:] = set_flags(PLAIN)
     names = args.scenario or list(SCENARIOS)
-    # seeds far apart: emulate --seed S runs lap k on noise seed S + k, so robots 7 and 8 would share their laps'
-    # noise one lap apart (until 2026-11-28 they did, and agreed with each other more than robots do)
     if args.again:  # the scenarios a --keep run left robots of (an older run has fewer), unless named
         def kept_robot(name: str, s: int) -> str:
             return os.path.join(args.again, f"{name.replace(' ', '_')}_{SEED + SEED_STEP * s}", "live.json")
@@ -348,8 +344,12 @@ def main() -> None:
         names = names if args.scenario else [n for n in names if os.path.isfile(kept_robot(n, 0))]
         missing = [kept_robot(n, s) for n in names for s in range(args.seeds) if not os.path.isfile(kept_robot(n, s))]
         if missing or not names:
-            sys.exit(fail(f"--again {args.again}: no robot kept at {missing[0] if missing else 'any scenario'} "
-                          "(run them with --keep DIR)"))
+            where = f"no robot kept at {missing[0]}" if missing else "no robot kept of any scenario"
+            sys.exit(fail(f"--again {args.again}: {where} (run them with --keep DIR)"))
+    PLAIN.update(QUICK_GAINS if args.quick else tuned_gains())
+    GAINS[:] = set_flags(PLAIN)
+    # seeds far apart: emulate --seed S runs lap k on noise seed S + k, so robots 7 and 8 would share their laps'
+    # noise one lap apart (until 2026-11-28 they did, and agreed with each other more than robots do)
     jobs = [(n, SEED + SEED_STEP * s) for n in names for s in range(args.seeds)]
     t0 = time.monotonic()
     if args.keep:

@@ -59,6 +59,7 @@ def test_the_history_command_says_carried_on_when_the_forecast_does(capsys):
                 "changes": [], "forecasts": {"motion.mu": forecast}, "forecast": None, "advice": []}
 
     say_entry(Output(False), entry(True))
-    assert "motion.mu: 0.7 at lap 28 (carried on from lap 25, the last lap read), -0.005 per lap" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "motion.mu: 0.7 at lap 28 (carried on from lap 25, the last lap read), -0.005 per lap" in said
     say_entry(Output(False), entry(False))
     assert "carried on" not in capsys.readouterr().out

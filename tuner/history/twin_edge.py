@@ -113,11 +113,11 @@ def observation_model(rows) -> ObservationModel | None:
     (``rows`` from the least worn; the edge: the first value where most laps fail, or fewer than two finish) while
     its laps are regular (none ``SLOW`` times slower than the mean of the value raced before it: past there laps
     lose the line and find it again; against the least worn value's mean, a part that slows every lap, a battery
-    running down, was cut off 40 % of its way short of its edge). Each value's covariance (few seeds) is shrunk halfway towards its neighbours' (the values
-    raced on either side), and widened by the mean's own standard error. Pooled over every value instead, the
-    scatter near the edge (ten times the variance far from it) set the scatter everywhere: a robot's early laps
-    were read with a third of their sharpness, and early wear was seen late (issue 35). The means are read off a
-    smooth curve through them all (:func:`smooth_means`)."""
+    running down, was cut off 40 % of its way short of its edge). Each value's covariance (few seeds) is shrunk
+    halfway towards its neighbours' (the values raced on either side), and widened by the mean's own standard
+    error. Pooled over every value instead, the scatter near the edge (ten times the variance far from it) set the
+    scatter everywhere: a robot's early laps were read with a third of their sharpness, and early wear was seen late
+    (issue 35). The means are read off a smooth curve through them all (:func:`smooth_means`)."""
     done = []
     for v, laps in rows:
         finished = [x for f, x in laps if not f]
