@@ -37,8 +37,8 @@ its import time):
     time; the first forecast, on those races (a robot kept by an older ``--keep`` has none: its first forecast races the
     twin); and once more after forgetting them, as a new ``history`` process does. At real time: is the first forecast,
     and the first of both parts at once (the first lap, read lap by lap, where no part alone explains the laps: it needs
-    the race-ahead's rows of both), ready within a lap of being asked, given when this run's races were done (each
-    entry's time in the robot's cache folder) and the forecast's own wall time?
+    the race-ahead's rows of both), and the first on more seeds a value (raced last), ready within a lap of being
+    asked, given when this run's races were done (each entry's time in the robot's cache folder) and its wall time?
 
   python benchmarks/bench_forecast.py [--seeds 2] [--speed 10] [--scenario NAME ...] [--keep DIR | --again DIR]
                                       [--share-cache] [--parallel 2] [--race-seeds K] [--quick] [--json]
@@ -63,11 +63,11 @@ import tempfile
 import time
 
 from tuner.history import log_laps
-from tuner.history.forecast import MIN_TIMED_LAPS, SERVICE, race_ahead
+from tuner.history.forecast import MIN_TIMED_LAPS, SEEDS_LATER_FROM, SERVICE, edge_seeds as seeds_for, race_ahead
 from tuner.history.ingest import cross_track
 from tuner.history.report import soonest
 from tuner.history import twin_edge
-from tuner.history.two_causes import forecasts_of as history_forecasts, joint_address
+from tuner.history.two_causes import ROWS, forecasts_of as history_forecasts, joint_address
 from tuner.prognostics.information import remaining_life_bound, within_alpha
 from twin.cli.guard import fail
 from twin.core.digital_twin import DigitalTwin
@@ -148,7 +148,7 @@ def robot_laps_of(folder: str) -> list:
 
 
 def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: int,
-                      edge_seeds: int = twin_edge.SEEDS) -> dict | None:
+                      edge_seeds: int | None = None) -> dict | None:
     """How well any forecast could do at lap ``now`` of a robot whose one part wears along a straight line or a
     curve (``drifts``): the Cramér–Rao bound on the remaining life from its laps read through the twin's own
     observation model at the twin's own scatter (:mod:`tuner.prognostics.information`; value, rate and
@@ -160,7 +160,7 @@ def information_limit(twin: DigitalTwin, drifts: list[str], now: int, true_rul: 
     drift = Drift.parse(drifts[0], twin)
     if drift.shape == "step" or drift.address not in SERVICE:
         return None
-    edge = race_ahead(twin, PLAIN, seeds=edge_seeds)[drift.address]  # the races live ran ahead, read back
+    edge = race_ahead(twin, PLAIN, seeds=seeds_for(now + 1) if edge_seeds is None else edge_seeds)[drift.address]
     if edge.failure is None or edge.observation is None:
         return None
     values = [drift.at(k) for k in range(now + 1)]
@@ -200,11 +200,11 @@ def exact_check(drifts: list[str], twin: DigitalTwin, forecast, record: dict, no
 
 
 def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, seed: int,
-                 drifts: list[str] = (), cache: str | None = None, edge_seeds: int = twin_edge.SEEDS) -> dict:
+                 drifts: list[str] = (), cache: str | None = None, edge_seeds: int | None = None) -> dict:
     """The forecasts at POINTS of the life, and every EVERY laps (for the prognostic horizon), from what the
     history would hold: live's alignments and the robot's laps (lap time, the line's mean offset and side), the
-    twin raced on ``edge_seeds`` noise seeds a value (live's race-ahead races the default: with any other, no
-    readiness figure)."""
+    twin raced on ``edge_seeds`` noise seeds a value (None: as history does, by the laps, and live's race-ahead
+    races ahead; with any other, no readiness figure)."""
     lap_times = [t for t, *_ in robot_laps]
     twin_edge.forget_races()  # each robot's first forecast reads the races its live ran ahead, in its cache folder
     if cache:  # (as run_robot ran it)
@@ -264,10 +264,16 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
         else:
             joint_first = {k: out["forecasts"][later][k] for k in ("now", "wall_s")}
     done_path = os.path.join(folder, RACES_DONE)
-    if os.path.isfile(done_path) and edge_seeds == twin_edge.SEEDS:
+    if os.path.isfile(done_path) and edge_seeds is None:
         with open(done_path) as done_file:
-            out["ready"] = ready_within_a_lap(json.load(done_file), done, first, joint_first, MIN_TIMED_LAPS,
-                                              len(SERVICE))
+            written = json.load(done_file)
+        # the first forecast on more seeds a value, as a new history makes it (if live raced them: a race a part last)
+        later_races, first_later = len(SERVICE) if len(written) >= 2 * len(SERVICE) + ROWS - 1 else 0, None
+        if later_races and failed > SEEDS_LATER_FROM:
+            twin_edge.forget_races()
+            first_later = {"now": SEEDS_LATER_FROM - 1, "wall_s": round(forecast(SEEDS_LATER_FROM - 1)[1], 2)}
+        out["ready"] = ready_within_a_lap(written, done, first, joint_first, MIN_TIMED_LAPS, len(SERVICE),
+                                          first_later, later_races)
     # the Monte Carlo's own error: the forecast at half of the life again, on other filter seeds (the races kept)
     half = next(f for f in out["forecasts"] if f["now"] == half_now)  # its own seed's is made already
     others = [forecast(half["now"], filter_seed=k)[0].laps_to_failure for k in range(seed + 1, seed + FILTER_SEEDS)]
@@ -284,7 +290,7 @@ def forecasts_of(twin: DigitalTwin, folder: str, doc: dict, robot_laps: list, se
 
 
 def race_seeds_at_half(twin: DigitalTwin, run: dict, race_seeds: int,
-                       edge_seeds: int = twin_edge.SEEDS) -> dict | None:
+                       edge_seeds: int | None = None) -> dict | None:
     """The forecast at half of the life again, on the same evidence and filter seed, from the twin raced on
     ``race_seeds`` other draws of its noise seeds (into whatever cache folder ``twin_edge.RACES`` names: robots on the
     same gains share them): {"now", "true_rul", "forecasts": [{"median", "lo", "hi"}, …]}, race seed 0's first."""
@@ -318,9 +324,9 @@ def main() -> None:
     ap.add_argument("--race-seeds", type=int, default=0, metavar="K", help="forecast each robot at half of its life "
                     "again from the twin raced on K other draws of its noise seeds (default 0: none; the robots "
                     "share those races, in one cache folder of the run)")
-    ap.add_argument("--edge-seeds", type=int, default=twin_edge.SEEDS, metavar="N", help="the twin's noise seeds "
-                    "a raced value, with --again (default %(default)s, as live races ahead and history forecasts: "
-                    "with another, the races are raced here and no readiness figure is given)")
+    ap.add_argument("--edge-seeds", type=int, default=None, metavar="N", help="with --again: the twin's noise seeds a "
+                    "raced value, every forecast (default: as history asks, by the robot's laps: forecast.edge_seeds; "
+                    "with N, the races are raced here and no readiness figure is given)")
     ap.add_argument("--quick", action="store_true", help="one robot, linear wear in 24 laps, 20× real time (for CI)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -329,11 +335,11 @@ def main() -> None:
         SCENARIOS.update(QUICK)
         args.seeds, args.speed, args.scenario = 1, 20.0, None
         args.race_seeds = max(args.race_seeds, 1)  # (its code path too: two more races)
-    if args.edge_seeds < 2:
+    if args.edge_seeds is not None and args.edge_seeds < 2:
         sys.exit(fail(f"--edge-seeds {args.edge_seeds}: at least 2 (a value's scatter needs two laps)"))
-    if args.edge_seeds != twin_edge.SEEDS and not args.again:
+    if args.edge_seeds is not None and not args.again:
         sys.exit(fail(f"--edge-seeds {args.edge_seeds}: only with --again (live races the gains ahead on "
-                      f"{twin_edge.SEEDS} seeds a value)"))
+                      "the seeds history asks for)"))
     if args.again and not os.path.isdir(args.again):
         sys.exit(fail(f"--again {args.again}: no such folder"))
     names = args.scenario or list(SCENARIOS)
@@ -400,7 +406,7 @@ def main() -> None:
         return
     pace = f"kept in {args.again} (their pace as run)" if args.again else f"at {args.speed:g}× real time"
     caches = "one cache folder for all" if args.share_cache else "a cache folder each"
-    if args.edge_seeds != twin_edge.SEEDS:
+    if args.edge_seeds is not None:
         caches += f", the twin raced on {args.edge_seeds} noise seeds a value"
     print(f"{len(runs)} robots ({', '.join(names)} × {args.seeds} seeds) {pace}, {caches}, "
           f"{result['wall_s']:.0f} s wall")
@@ -416,9 +422,10 @@ def main() -> None:
             print(f"  {r['scenario']} seed {r['seed']}, exact posterior at lap {exact['now']}: speeding up "
                   f"{exact['exact_speeding_up']:.0%} (filter {exact['filter_speeding_up']:.0%}), median "
                   f"{exact['exact_median']} laps (filter {exact['filter_median']}), true {exact['true_rul']}")
-        ready = r.get("ready")
-        for what, x in [("first forecast", (ready or {}).get("first")),
-                        ("first forecast of both at once", (ready or {}).get("first_joint"))]:
+        ready = r.get("ready") or {}
+        later = f"first forecast on {seeds_for(SEEDS_LATER_FROM)} seeds a value"
+        for what, x in [("first forecast", ready.get("first")), ("first forecast of both at once",
+                        ready.get("first_joint")), (later, ready.get("first_later"))]:
             if x:
                 at = f" (lap {x['now']})" if "now" in x else ""
                 print(f"  {r['scenario']} seed {r['seed']}, {what}{at} at real time: asked {x['asked_s']} s after "

@@ -69,6 +69,7 @@ def metrics(runs: list[dict]) -> dict:
     ready = [r["ready"] for r in runs if r.get("ready")]
     firsts = [x["first"] for x in ready if "first" in x]
     joints = [x["first_joint"] for x in ready if "first_joint" in x]
+    laters = [x["first_later"] for x in ready if "first_later" in x]
     return {"forecasts": len(points), "without_a_number": silent,
             "coverage_90": round(sum(map(covered, points)) / len(points), 3) if points else None,
             "median_width_laps": statistics.median(widths) if widths else None,
@@ -83,11 +84,14 @@ def metrics(runs: list[dict]) -> dict:
             "forecast_wall_s_median": statistics.median(walls) if walls else None,
             "cached_forecast_wall_s_max": max(cached) if cached else None,
             "cached_forecast_wall_s_median": statistics.median(cached) if cached else None,
-            # at real time (ready_within_a_lap): the first forecast, and the first of both parts at once
+            # at real time (ready_within_a_lap): the first forecast, the first of both parts at once …
             "first_forecast_within_a_lap": f"{sum(x['within_a_lap'] for x in firsts)}/{len(firsts)}",
             "first_forecast_late_s_max": max((x["late_s"] for x in firsts), default=None),
             "first_joint_within_a_lap": f"{sum(x['within_a_lap'] for x in joints)}/{len(joints)}",
             "first_joint_late_s_max": max((x["late_s"] for x in joints), default=None),
+            # … and the first on the races of more seeds a value (forecast.SEEDS_LATER_FROM laps in)
+            "first_later_within_a_lap": f"{sum(x['within_a_lap'] for x in laters)}/{len(laters)}",
+            "first_later_late_s_max": max((x["late_s"] for x in laters), default=None),
             "filter_seed_spread_median": round(statistics.median(spreads), 3) if spreads else None,
             "filter_seed_spread_max": round(max(spreads), 3) if spreads else None,
             "alpha_lambda_met_per_filter_seed": round(sum(per_seed) / len(per_seed), 3) if per_seed else None,
@@ -102,14 +106,16 @@ def metrics(runs: list[dict]) -> dict:
 
 
 def ready_within_a_lap(done: list[float], lap_times: list[float], first: dict | None, joint_first: dict | None,
-                       timed_laps: int, one_cause_races: int) -> dict | None:
+                       timed_laps: int, one_cause_races: int, later: dict | None = None,
+                       later_races: int = 0) -> dict | None:
     """Whether a robot at real time would have had its first forecast (``first``: {"now", "wall_s"}), and its first
     of both parts at once (``joint_first``), within one lap of asking: asked when the lap is in (``timed_laps``, the
     laps a forecast waits for; the first lap of both at once), at the robot's median lap time (of its finished
     ``lap_times``); ready when the races it needs are done (``done``: when each race was written [s after live
     started], in order: the first ``one_cause_races`` the parts one at a time, the rest the rows of both at once;
-    at a pace above real time live works harder beside them, so they are slower there than at real time) and it is
-    computed (its wall time, the races read). None without the races' times."""
+    at a pace above real time live works harder beside them, so they are slower there than at real time; the last
+    ``later_races`` the parts again on more seeds, which the first forecast ``later`` reads) and it is computed (its
+    wall time, the races read). None without the races' times."""
     if not done or not lap_times:
         return None
     lap_s = statistics.median(lap_times)
@@ -122,7 +128,9 @@ def ready_within_a_lap(done: list[float], lap_times: list[float], first: dict | 
 
     if first is not None and len(done) >= one_cause_races:  # asked at the earliest: when its laps are in
         out["first"] = ready(timed_laps * lap_s, done[one_cause_races - 1], first["wall_s"])
-    if joint_first is not None:
+    if joint_first is not None and len(done) > later_races:
         out["first_joint"] = {"now": joint_first["now"],
-                              **ready((joint_first["now"] + 1) * lap_s, done[-1], joint_first["wall_s"])}
+                              **ready((joint_first["now"] + 1) * lap_s, done[-1 - later_races], joint_first["wall_s"])}
+    if later is not None and later_races and len(done) >= one_cause_races + later_races:
+        out["first_later"] = {"now": later["now"], **ready((later["now"] + 1) * lap_s, done[-1], later["wall_s"])}
     return out

@@ -230,8 +230,8 @@ def test_the_forecast_filters_the_evidence_and_races_the_gains_on_the_twin():
                            f"{s['median']:.0f} laps ({s['share']:.0%} of the futures); speeding up, about "
                            f"{c['median']:.0f} ({c['share']:.0%})")
     # the laps carry no lap time here: the alignments are the evidence
-    assert f.evidence == {"alignments": 3, "laps": 26, "failed": 0, "timed_laps": 0, "observed_laps": 0, "features": [],
-                          "alignments_used": 3, "last_read_lap": 25, "carried_on": False}
+    assert f.evidence == dict(alignments=3, laps=26, failed=0, timed_laps=0, edge_seeds=5, observed_laps=0,
+                              features=[], alignments_used=3, last_read_lap=25, carried_on=False)
     assert any("replace the tyres" in a for a in f.advice)
     again = forecast_failure(twin, PLAIN, alignments[::-1], laps, "motion.mu", now_lap=25)
     assert again == f  # bit for bit, whatever the order the evidence comes in

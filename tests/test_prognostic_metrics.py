@@ -62,5 +62,13 @@ def test_readiness_is_the_lateness_after_asking_against_one_lap():
     assert r["first"] == {"asked_s": 56.0, "races_done_s": 20.0, "wall_s": 1.5, "late_s": 1.5, "within_a_lap": True}
     assert r["first_joint"] == {"now": 17, "asked_s": 126.0, "races_done_s": 150.0, "wall_s": 2.0, "late_s": 26.0,
                                 "within_a_lap": False}
+    # the same with each part raced again on more seeds last (at 160 and 170 s): the rows of both at once are the
+    # third race from the end; the first forecast on the later races, at lap 19, asked when it is in (20 · 7 = 140 s),
+    # 3 s to compute: 33 s late
+    r = ready_within_a_lap([10.0, 20.0, 150.0, 160.0, 170.0], [7.0, 7.0, 8.0], {"now": 8, "wall_s": 1.5},
+                           {"now": 17, "wall_s": 2.0}, 8, 2, {"now": 19, "wall_s": 3.0}, 2)
+    assert r["first_joint"]["races_done_s"] == 150.0 and r["first_joint"]["late_s"] == 26.0
+    assert r["first_later"] == {"now": 19, "asked_s": 140.0, "races_done_s": 170.0, "wall_s": 3.0, "late_s": 33.0,
+                                "within_a_lap": False}
     assert ready_within_a_lap([10.0], [7.0], {"now": 8, "wall_s": 1.0}, None, 8, 2) == {"lap_s": 7.0}  # one race
     assert ready_within_a_lap([], [7.0], None, None, 8, 2) is None

@@ -13,7 +13,7 @@ from live_helpers import emulator
 from reference_gains import set_flags
 from tuner.history import forecast_failure
 from tuner.history import twin_edge as te
-from tuner.history.forecast import SERVICE
+from tuner.history.forecast import SEEDS_LATER, SEEDS_LATER_FROM, SERVICE
 from tuner.history.two_causes import ROWS
 from twin.cli.main import main
 from twin.core.closed_loop import run_laps
@@ -44,9 +44,9 @@ def test_live_runs_ahead_the_races_history_reads(tmp_path, capsys, monkeypatch):
     assert code == 0, err
     assert json.loads(out)["race_ahead"]["state"] == "done", out
     ahead = races(cache)
-    # one race per part that wears, the rows of both at once but the first (the first part's race alone), and no
-    # half-written entry beside them
-    assert len(ahead) == len(SERVICE) + ROWS - 1
+    # one race per part that wears, the rows of both at once but the first (the first part's race alone), each part
+    # again on more seeds, and no half-written entry beside them
+    assert len(ahead) == 2 * len(SERVICE) + ROWS - 1
     # history, a new process with the world flags alone (the gains come from the robot's laps): it reads them
     te.forget_races()
     monkeypatch.setattr(te, "_twin_edge", lambda *a: pytest.fail("history raced the twin again"))
@@ -55,6 +55,16 @@ def test_live_runs_ahead_the_races_history_reads(tmp_path, capsys, monkeypatch):
     assert robot["gains_in_force"] == PLAIN and races(cache) == ahead
     for address in SERVICE:
         assert robot["forecasts"][address]["laps"] > 0 and robot["forecasts"][address]["raced"] is not None
+        assert robot["forecasts"][address]["evidence"]["edge_seeds"] == te.SEEDS  # (9 laps in)
+    # a forecast later in the robot's life reads the races on more seeds, run ahead too
+    twin = DigitalTwin(track="oval")
+    more = run_laps(twin, [PLAIN] * SEEDS_LATER_FROM, seed=list(range(100, 100 + SEEDS_LATER_FROM)),
+                    keep_traces=False)
+    seen = [{"n": k, "completed": r.completed, "gains": PLAIN, "lap_time_s": r.lap_time_s} for k, r in enumerate(more)]
+    for address in SERVICE:
+        later = forecast_failure(twin, PLAIN, [], seen, address, now_lap=SEEDS_LATER_FROM - 1)
+        assert later.evidence["edge_seeds"] == SEEDS_LATER > te.SEEDS and later.laps > 0, later.statement
+    assert races(cache) == ahead
 
 
 def test_only_a_value_measured_less_worn_than_the_twin_moves_the_race(tmp_path, monkeypatch):

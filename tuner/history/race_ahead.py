@@ -1,12 +1,14 @@
 """The twin's races of a robot's gains, run ahead in a background process while the robot laps.
 
 A forecast (:func:`tuner.history.forecast_failure`) rests on races of the gains in force on the twin, one per part
-that wears: about 150 laps each, tens of seconds on 2 cores, where a forecast is to be ready within a lap; and,
-after those, the rows a forecast of both at once asks for (:func:`tuner.history.two_causes.race_plane`). The
-races depend on the twin and the gains, not on the robot's laps (:func:`tuner.history.forecast.race_range`), so
-``live`` starts them when it starts, in a process of its own at a lower priority than its own work, and
-``history``'s first forecast reads them from the cache folder (:mod:`tuner.history.twin_edge`). A robot needs
-``MIN_TIMED_LAPS`` laps before a forecast: at real time the races are done by then.
+that wears: about 150 laps each, tens of seconds on 2 cores, where a forecast is to be ready within a lap; after
+those, the rows a forecast of both at once asks for (:func:`tuner.history.two_causes.race_plane`); then each part's
+race on more noise seeds a value, which forecasts from the robot's ``SEEDS_LATER_FROM``-th timed lap read
+(:func:`tuner.history.forecast.edge_seeds`). The races depend on the twin and the gains, not on the robot's laps
+(:func:`tuner.history.forecast.race_range`), so ``live`` starts them when it starts, in a process of its own at a
+lower priority than its own work, and ``history``'s forecasts read them from the cache folder
+(:mod:`tuner.history.twin_edge`). A robot needs ``MIN_TIMED_LAPS`` laps before a forecast: at real time the first
+races are done by then, and the last before its ``SEEDS_LATER_FROM``-th.
 
   python -m tuner.history.race_ahead   (reads the twin, the gains and the seed, pickled, on stdin: for ``live``)
 """
@@ -100,11 +102,12 @@ def main() -> int:
     # batches of laps: STOP_WAIT_S)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     twin, gains, seed = pickle.load(sys.stdin.buffer)
-    from tuner.history.forecast import race_ahead
+    from tuner.history.forecast import SEEDS_LATER, race_ahead
     from tuner.history.two_causes import race_ahead_both
 
     race_ahead(twin, gains, seed)
     race_ahead_both(twin, gains, seed)  # then the rows a forecast of both at once asks for
+    race_ahead(twin, gains, seed, seeds=SEEDS_LATER)  # then each part's on more seeds, for forecasts later in life
     return 0
 
 
