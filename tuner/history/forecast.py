@@ -56,8 +56,8 @@ MIN_TIMED_LAPS = 8  # … or this many finished laps on the gains in force, read
 SEEDS_LATER = 20  # the twin's noise seeds a value a one-cause forecast's race runs on once the robot has …
 SEEDS_LATER_FROM = 30  # … this many timed laps on the gains in force (before: EDGE_SEEDS, 5). From the first
 # forecast on, the robot's laps pin its value better than 5 seeds a value pin the twin's curve there: over eight
-# draws of the twin's races the forecasts at half of life met α-λ 77 % on 5 seeds a value and 86 % on 20
-# (docs/models.md). But 20 take four times as long, and the first forecast, 8 laps in, is to be ready within a lap;
+# draws of the twin's races the forecasts at half of life met α-λ 77 % on 5 seeds a value, 86 % on 20 throughout
+# and 83 % on 20 from here (docs/models.md). But 20 take four times as long, and the first forecast, 8 laps in, is to be ready within a lap;
 # so live's race-ahead races 5 first, then the rows of both at once, then 20: done 188 s after live started at real
 # time on 2 cores beside live's own work (docs/performance.md), where a robot of 7.2 s laps is 26 laps in. The laps
 # decide which races a forecast reads, not the clock: the same history gives the same forecast however its races
