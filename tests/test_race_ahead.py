@@ -29,6 +29,12 @@ def races(cache) -> list[str]:
     return sorted(os.listdir(folder)) if folder.is_dir() else []
 
 
+def twin_laps(twin, n: int) -> list[dict]:
+    """``n`` laps of ``PLAIN`` on the twin (seeds 100 onwards), as the history holds a robot's laps."""
+    laps = run_laps(twin, [PLAIN] * n, seed=list(range(100, 100 + n)), keep_traces=False)
+    return [{"n": k, "completed": r.completed, "gains": PLAIN, "lap_time_s": r.lap_time_s} for k, r in enumerate(laps)]
+
+
 def test_live_runs_ahead_the_races_history_reads(tmp_path, capsys, monkeypatch):
     cache = tmp_path / "cache"
     monkeypatch.setenv("TWIN_CACHE_DIR", str(cache))
@@ -58,9 +64,7 @@ def test_live_runs_ahead_the_races_history_reads(tmp_path, capsys, monkeypatch):
         assert robot["forecasts"][address]["evidence"]["edge_seeds"] == te.SEEDS  # (9 laps in)
     # a forecast later in the robot's life reads the races on more seeds, run ahead too
     twin = DigitalTwin(track="oval")
-    more = run_laps(twin, [PLAIN] * SEEDS_LATER_FROM, seed=list(range(100, 100 + SEEDS_LATER_FROM)),
-                    keep_traces=False)
-    seen = [{"n": k, "completed": r.completed, "gains": PLAIN, "lap_time_s": r.lap_time_s} for k, r in enumerate(more)]
+    seen = twin_laps(twin, SEEDS_LATER_FROM)
     for address in SERVICE:
         later = forecast_failure(twin, PLAIN, [], seen, address, now_lap=SEEDS_LATER_FROM - 1)
         assert later.evidence["edge_seeds"] == SEEDS_LATER > te.SEEDS and later.laps > 0, later.statement
@@ -73,8 +77,7 @@ def test_only_a_value_measured_less_worn_than_the_twin_moves_the_race(tmp_path, 
     monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path))
     te.forget_races()  # (races this process read before: not in this cache folder)
     twin = DigitalTwin(track="oval")
-    laps = run_laps(twin, [PLAIN] * LAPS, seed=list(range(100, 100 + LAPS)), keep_traces=False)
-    seen = [{"n": k, "completed": r.completed, "gains": PLAIN, "lap_time_s": r.lap_time_s} for k, r in enumerate(laps)]
+    seen = twin_laps(twin, LAPS)
     first = forecast_failure(twin, PLAIN, [], seen, "motion.mu", now_lap=LAPS - 1)
     assert first.raced is not None and first.raced[0] > twin.space.get("motion.mu"), first.statement
     assert len(races(tmp_path)) == 1
@@ -113,8 +116,7 @@ def test_a_forecast_whose_race_another_process_runs_says_so_within_its_wait(tmp_
     monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path))
     te.forget_races()
     twin = DigitalTwin(track="oval")
-    laps = run_laps(twin, [PLAIN] * LAPS, seed=list(range(100, 100 + LAPS)), keep_traces=False)
-    seen = [{"n": k, "completed": r.completed, "gains": PLAIN, "lap_time_s": r.lap_time_s} for k, r in enumerate(laps)]
+    seen = twin_laps(twin, LAPS)
 
     def hold(address):  # the race of a part that wears, as forecast_failure asks for it, held as its builder would
         direction = service_direction(twin, address, [])
